@@ -1,0 +1,22 @@
+# One target per gate; CI (.ci/run) runs `make test`.
+VENV := .venv
+BIN := $(VENV)/bin
+# Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
+export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
+
+.PHONY: install demo test lint bench
+
+install: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml scripts/setup.sh
+	bash scripts/setup.sh dev
+	touch $@
+
+demo: install  ## renders the UR5e reach scene at home and a few poses to results/demo/*.png
+	$(BIN)/tsrl demo --out-dir results/demo
+
+test: install  ## the test suite, without the slow checks
+	$(BIN)/python -m pytest -m "not slow" -n auto --durations=10
+
+lint:
+	$(BIN)/ruff check . && $(BIN)/ruff format --check .

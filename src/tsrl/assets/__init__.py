@@ -1,0 +1,44 @@
+"""Package data: our UR5e MJCF and the scenes built on it; `load_model` compiles them."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import mujoco
+
+from ..exceptions import ModelLoadError, UnknownScene
+
+#: Built-in scenes: name -> MJCF file under tsrl/assets.
+SCENES: dict[str, str] = {
+    "ur5e": "ur5e/ur5e.xml",
+    "reach": "scenes/reach.xml",
+    "pick_place": "scenes/pick_place.xml",
+}
+
+
+def scene_path(name: str) -> Path:
+    """Path of a built-in scene's MJCF file; raises UnknownScene listing the known ones."""
+    if name not in SCENES:
+        raise UnknownScene(name, SCENES)
+    return Path(str(resources.files(__package__).joinpath(SCENES[name])))
+
+
+def load_model(name: str | Path) -> mujoco.MjModel:
+    """Compiles a built-in scene (`reach`, `pick_place`, `ur5e`) or an MJCF file given by path.
+
+    Raises:
+        UnknownScene: `name` is not a built-in scene and no such .xml file exists.
+        ModelLoadError: the file exists but MuJoCo cannot compile it (the message says why).
+    """
+    if isinstance(name, str) and name in SCENES:
+        path = scene_path(name)
+    else:
+        path = Path(name)
+        if path.suffix.lower() != ".xml" or not path.is_file():
+            raise UnknownScene(str(name), SCENES)
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as err:
+        reason = " ".join(str(err).split())
+        raise ModelLoadError(f"could not load MJCF model {str(path)!r}: {reason}") from None

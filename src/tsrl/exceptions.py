@@ -1,0 +1,36 @@
+"""Exceptions raised by tsrl; each message names the bad value and what is accepted."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class TsrlError(Exception):
+    """Base class of every error tsrl raises on bad input."""
+
+
+class UnknownScene(TsrlError, KeyError):
+    """A scene name that is neither a built-in scene nor an existing MJCF file."""
+
+    def __init__(self, name: str, known: Iterable[str]):
+        super().__init__(
+            f"unknown scene {name!r}; known scenes: {', '.join(sorted(known))} "
+            "(or pass the path of an existing MJCF .xml file)"
+        )
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
+class ModelLoadError(TsrlError, ValueError):
+    """An MJCF file that MuJoCo cannot compile."""
+
+
+class UnknownName(TsrlError, KeyError):
+    """A joint, site, body or geom name the model does not have."""
+
+    def __init__(self, kind: str, name: str, known: Iterable[str]):
+        super().__init__(f"unknown {kind} {name!r}; the model's {kind}s: {', '.join(sorted(known))}")
+
+    def __str__(self) -> str:
+        return str(self.args[0])

@@ -1,0 +1,38 @@
+"""Plain standard-DH forward kinematics in numpy: the independent reference for MuJoCo's frames."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+
+def dh_transform(a: float, d: float, alpha: float, theta: float) -> np.ndarray:
+    """Standard DH link transform T_{i-1,i} = Rz(theta) Tz(d) Tx(a) Rx(alpha), shape (4, 4)."""
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    return np.array(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [0.0, sa, ca, d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def dh_forward(dh_table: Sequence[tuple[float, float, float]], q: ArrayLike) -> np.ndarray:
+    """Pose T_0n of the last DH frame in the base frame, shape (4, 4).
+
+    Args:
+        dh_table: rows (a, d, alpha) in metres and radians, one per joint.
+        q: joint angles (n,) in radians, added to each row's theta = 0.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape != (len(dh_table),):
+        raise ValueError(f"q has shape {q.shape}; expected ({len(dh_table)},) for this DH table")
+    T = np.eye(4)
+    for (a, d, alpha), theta in zip(dh_table, q):
+        T = T @ dh_transform(a, d, alpha, theta)
+    return T

@@ -1,0 +1,114 @@
+"""Our UR5e MJCF and scenes: names, published facts, loading errors."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from tsrl.assets import SCENES, load_model, scene_path
+from tsrl.assets.ur5e import (
+    BODY_NAMES,
+    HOME_Q,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    LINK_COMS_DH,
+    LINK_MASSES,
+    MAX_JOINT_TORQUES,
+    UR5E_DH,
+)
+from tsrl.exceptions import ModelLoadError, UnknownName, UnknownScene
+from tsrl.kinematics import dh_transform, name_to_id
+
+OBJ = mujoco.mjtObj
+
+
+@pytest.mark.parametrize("scene", ["reach", "pick_place"])
+def test_scene_has_the_named_parts(scene):
+    model = load_model(scene)
+    for joint in JOINT_NAMES:
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_JOINT, joint) >= 0
+    for site in ("flange", "tcp", "target"):
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_SITE, site) >= 0
+    for geom in ("table", "suction_cup"):
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, geom) >= 0
+    target = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "target")
+    assert model.body_mocapid[target] >= 0
+    assert model.body_geomnum[target] == 0  # the goal marker never collides
+    assert model.nkey >= 1 and mujoco.mj_name2id(model, OBJ.mjOBJ_KEY, "home") >= 0
+
+
+def test_pick_place_has_a_free_4cm_box_on_the_table():
+    model = load_model("pick_place")
+    box = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "box")
+    joint = model.body_jntadr[box]
+    assert int(model.jnt_type[joint]) == int(mujoco.mjtJoint.mjJNT_FREE)
+    geom = mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, "box")
+    np.testing.assert_allclose(model.geom_size[geom], [0.02, 0.02, 0.02])
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    for _ in range(250):  # half a second: the box rests on the table top (z = 0)
+        mujoco.mj_step(model, data)
+    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)
+
+
+def test_link_masses_and_centres_of_mass_match_the_published_values():
+    model = load_model("ur5e")
+    for i, body in enumerate(BODY_NAMES):
+        b = name_to_id(model, "body", body)
+        assert model.body_mass[b] == pytest.approx(LINK_MASSES[i])
+        # Body i sits at DH frame i-1 rotated by q_i; the published CoM is in DH frame i.
+        T = dh_transform(*UR5E_DH[i], theta=0.0)
+        com_body = T[:3, :3] @ np.array(LINK_COMS_DH[i]) + T[:3, 3]
+        np.testing.assert_allclose(model.body_ipos[b], com_body, atol=1e-5)
+
+
+def test_joint_limits_torques_and_servos():
+    model = load_model("reach")
+    for i, name in enumerate(JOINT_NAMES):
+        j = name_to_id(model, "joint", name)
+        np.testing.assert_allclose(model.jnt_range[j], JOINT_LIMITS[i])
+        a = name_to_id(model, "actuator", name)
+        assert int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+        assert model.actuator_trnid[a, 0] == j
+        np.testing.assert_allclose(
+            model.actuator_forcerange[a], [-MAX_JOINT_TORQUES[i], MAX_JOINT_TORQUES[i]]
+        )
+        assert model.jnt_actgravcomp[j]
+    suction = name_to_id(model, "actuator", "suction")
+    assert int(model.actuator_trntype[suction]) == int(mujoco.mjtTrn.mjTRN_BODY)
+    assert model.actuator_trnid[suction, 0] == name_to_id(model, "body", "suction_cup")
+
+
+def test_unknown_scene_lists_the_known_scenes():
+    with pytest.raises(UnknownScene) as err:
+        load_model("kitchen")
+    message = str(err.value)
+    assert "'kitchen'" in message
+    for name in SCENES:
+        assert name in message
+
+
+def test_missing_file_is_an_unknown_scene(tmp_path):
+    with pytest.raises(UnknownScene, match="known scenes"):
+        load_model(tmp_path / "absent.xml")
+
+
+def test_malformed_model_file_gives_a_clear_error(tmp_path):
+    path = tmp_path / "broken.xml"
+    path.write_text("<mujoco><worldbody><body><geom type='sphere'/></wrongtag></mujoco>")
+    with pytest.raises(ModelLoadError, match=r"could not load MJCF model .*broken\.xml"):
+        load_model(path)
+    bad_value = tmp_path / "bad_value.xml"
+    bad_value.write_text("<mujoco><worldbody><geom type='sphere' size='-1'/></worldbody></mujoco>")
+    with pytest.raises(ModelLoadError, match="bad_value.xml"):
+        load_model(bad_value)
+
+
+def test_a_valid_model_file_loads_by_path():
+    model = load_model(scene_path("reach"))
+    assert model.nq == len(HOME_Q)
+
+
+def test_unknown_site_lists_the_model_sites():
+    model = load_model("reach")
+    with pytest.raises(UnknownName, match=r"unknown site 'gripper'.*flange.*target.*tcp"):
+        name_to_id(model, "site", "gripper")
