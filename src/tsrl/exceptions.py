@@ -34,3 +34,25 @@ class UnknownName(TsrlError, KeyError):
 
     def __str__(self) -> str:
         return str(self.args[0])
+
+
+class UnknownTaskMap(TsrlError, KeyError):
+    """A task-map (or preset) name the spec parser does not know."""
+
+    def __init__(self, name: str, known: Iterable[str]):
+        super().__init__(f"unknown task map {name!r}; known maps and presets: {', '.join(sorted(known))}")
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class SpecError(TsrlError, ValueError):
+    """A task-map spec string that cannot be parsed (syntax, argument count)."""
+
+
+class InvalidAction(TsrlError, ValueError):
+    """An action of the wrong shape, or with NaN/inf, rejected before it reaches the simulator."""
+
+
+class InvalidConfig(TsrlError, ValueError):
+    """A configuration value outside the accepted ones."""
