@@ -56,3 +56,13 @@ class InvalidAction(TsrlError, ValueError):
 
 class InvalidConfig(TsrlError, ValueError):
     """A configuration value outside the accepted ones."""
+
+
+class NotRelabelable(TsrlError, ValueError):
+    """A task map whose value for a translated frame cannot be computed from its old value alone."""
+
+    def __init__(self, spec: str, frame: str):
+        super().__init__(
+            f"task map {spec} cannot be recomputed from its value for a translation of frame {frame!r}; "
+            "evaluate it again with the frame moved"
+        )

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import abc
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
+
+from ..exceptions import NotRelabelable
+from .frames import Frame, FrameCache
 
 
 class TaskMapValue(NamedTuple):
@@ -21,15 +25,80 @@ class TaskMap(abc.ABC):
 
     Evaluated on (model, data) after forward kinematics (`tsrl.forward_kinematics` or any MuJoCo
     call that runs `mj_kinematics` and `mj_comPos`); never steps the physics.
+
+    Calling a map returns fresh arrays: a caller may keep the value of one call while making the
+    next. Subclasses implement `evaluate`, which writes into buffers and reads frame poses and
+    Jacobians from a `FrameCache` that computes each frame once per top-level call (a `Stack`
+    shares one cache between all its parts). A map is bound to the model it was built for.
     """
 
     #: Number of rows of y and J.
     dim: int
+    #: Canonical spec text, e.g. "positionDiff(tcp, target)"; `parse_spec(map.spec, model)` rebuilds it.
+    spec: str
+    #: Names of the frames and geoms the map reads (used by `translated`).
+    frames: tuple[str, ...] = ()
+
+    _workspace: _Workspace | None = None
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> TaskMapValue:
+        """Returns (y, J) at the configuration held in `data`, as fresh arrays."""
+        ws = self._workspace
+        if ws is None or ws.model is not model:
+            ws = self._workspace = _Workspace(model, self)
+        ws.cache.update(data)
+        self.evaluate(ws.cache, ws.y, ws.J)
+        return TaskMapValue(ws.y.copy(), ws.J.copy())
 
     @abc.abstractmethod
-    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> TaskMapValue:
-        """Returns (y, J) at the configuration held in `data`."""
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        """Writes y (dim,) and J (dim, nv) in place at the configuration held in `cache.data`."""
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        """The resolved frames whose pose and Jacobian `evaluate` reads from the cache."""
+        return ()
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """a - b in the map's coordinates; override where coordinates can jump."""
         return a - b
+
+    def translated(self, y: ArrayLike, frame: str, delta: ArrayLike) -> np.ndarray:
+        """The value y would take if the jointless frame `frame` moved by `delta` in world coordinates.
+
+        `frame` is a static, jointless frame (a mocap body or its site, such as `target`), named as
+        in the map's spec; everything else stays where it is. Vectorised: y (dim,) or (B, dim),
+        delta (3,) or (B, 3). Returns a new array; maps that do not read `frame` return y unchanged.
+
+        Raises:
+            NotRelabelable: the new value cannot be computed from y alone.
+        """
+        y = np.array(y, dtype=np.float64)
+        if frame not in self.frames:
+            return y
+        return self._translated(y, frame, np.asarray(delta, dtype=np.float64))
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        """`translated` for a map that reads `frame`; y is already a fresh copy."""
+        raise NotRelabelable(self.spec, frame)
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        """Whether J stays the same when the jointless frame `frame` is translated (velocity maps ask)."""
+        return frame not in self.frames
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.spec} dim={self.dim}>"
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state.pop("_workspace", None)  # holds the model and data of the last call; rebuilt on demand
+        return state
+
+
+class _Workspace:
+    """A top-level map's frame cache and output buffers for one model."""
+
+    def __init__(self, model: mujoco.MjModel, task_map: TaskMap):
+        self.model = model
+        self.cache = FrameCache(model, task_map.frame_refs())
+        self.y = np.zeros(task_map.dim)
+        self.J = np.zeros((task_map.dim, model.nv))

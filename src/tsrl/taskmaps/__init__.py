@@ -1,0 +1,36 @@
+"""Task maps phi: q -> (y, J) named after RAI feature symbols, their stack and the spec parser."""
+
+from .base import TaskMap, TaskMapValue
+from .collision import AccumulatedCollisions, Distance
+from .frames import Frame, FrameCache, resolve_frame
+from .joint import JointLimits, JointState
+from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
+from .position import Position, PositionDiff, PositionRel
+from .spec import OBS_PRESETS, TASK_MAPS, known_maps, parse_spec
+from .stack import Stack
+from .velocity import Velocity
+
+__all__ = (
+    "OBS_PRESETS",
+    "TASK_MAPS",
+    "AccumulatedCollisions",
+    "Distance",
+    "Frame",
+    "FrameCache",
+    "JointLimits",
+    "JointState",
+    "Position",
+    "PositionDiff",
+    "PositionRel",
+    "Quaternion",
+    "QuaternionDiff",
+    "ScalarProduct",
+    "Stack",
+    "TaskMap",
+    "TaskMapValue",
+    "Vector",
+    "Velocity",
+    "known_maps",
+    "parse_spec",
+    "resolve_frame",
+)

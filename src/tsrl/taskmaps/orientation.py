@@ -1,0 +1,165 @@
+"""Orientation task maps: quaternion, quaternionDiff, vectorX/Y/Z, scalarProductXX..ZZ (RAI symbols)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .base import TaskMap
+from .frames import Frame, FrameCache, resolve_frame
+from .position import skew
+
+AXES = "XYZ"
+
+
+def quat_rate_matrix(q: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Writes E(q) (4, 3) with dq/dt = E(q) w for q = (w, x, y, z) and world angular velocity w.
+
+    From dq/dt = 1/2 (0, w) * q (Hamilton product, w in world coordinates).
+    """
+    w, x, y, z = 0.5 * q
+    out[0] = -x, -y, -z
+    out[1] = w, z, -y
+    out[2] = -z, w, x
+    out[3] = y, -x, w
+    return out
+
+
+def _aligned_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a - s b with s = sign(a . b) per row, so that q and -q (one orientation) are not far apart."""
+    s = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+    return a - s * b
+
+
+class Quaternion(TaskMap):
+    """quaternion(f): world orientation of f as a unit quaternion (w, x, y, z) (4,).
+
+    Composed along the kinematic chain as MuJoCo's `xquat` (for a site: body xquat * site quat),
+    so it is continuous in q; never re-derived from a rotation matrix. J = E(q) Jr_f (4, nv).
+    """
+
+    dim = 4
+
+    def __init__(self, model: mujoco.MjModel, f: str):
+        self.f = resolve_frame(model, f)
+        self.frames = (f,)
+        self.spec = f"quaternion({f})"
+        self._E = np.zeros((4, 3))
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f,)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        s = cache[self.f]
+        y[:] = s.quat
+        np.dot(quat_rate_matrix(s.quat, self._E), s.jacr, out=J)
+
+    def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return _aligned_difference(a, b)
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        return y
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True
+
+
+class QuaternionDiff(TaskMap):
+    """quaternionDiff(f, g): q_f - s q_g with s = sign(q_f . q_g) (s = 1 at 0), as RAI defines it (4,).
+
+    J = E(q_f) Jr_f - s E(q_g) Jr_g (4, nv); s is held constant (y jumps where q_f . q_g = 0).
+    """
+
+    dim = 4
+
+    def __init__(self, model: mujoco.MjModel, f: str, g: str):
+        self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
+        self.frames = (f, g)
+        self.spec = f"quaternionDiff({f}, {g})"
+        self._E = np.zeros((4, 3))
+        self._Jg = np.zeros((4, model.nv))
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f, self.g)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        sf, sg = cache[self.f], cache[self.g]
+        s = -1.0 if np.dot(sf.quat, sg.quat) < 0.0 else 1.0
+        np.dot(quat_rate_matrix(sf.quat, self._E), sf.jacr, out=J)
+        np.dot(quat_rate_matrix(sg.quat, self._E), sg.jacr, out=self._Jg)
+        if s > 0:
+            np.subtract(sf.quat, sg.quat, out=y)
+            J -= self._Jg
+        else:
+            np.add(sf.quat, sg.quat, out=y)
+            J += self._Jg
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        return y
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True
+
+
+class Vector(TaskMap):
+    """vectorX/Y/Z(f): axis A of frame f in world coordinates, a = R_f e_A (3,).
+
+    J = -[a]x Jr_f (3, nv), from da/dt = w x a.
+    """
+
+    dim = 3
+
+    def __init__(self, model: mujoco.MjModel, axis: str, f: str):
+        self.axis = AXES.index(axis)
+        self.f = resolve_frame(model, f)
+        self.frames = (f,)
+        self.spec = f"vector{axis}({f})"
+        self._skew = np.zeros((3, 3))
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f,)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        s = cache[self.f]
+        y[:] = s.rot[:, self.axis]
+        np.dot(skew(-y, self._skew), s.jacr, out=J)
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        return y
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True
+
+
+class ScalarProduct(TaskMap):
+    """scalarProductAB(f, g): dot product a . b of axis A of f and axis B of g, world coordinates (1,).
+
+    J = (a x b)^T (Jr_f - Jr_g) (1, nv).
+    """
+
+    dim = 1
+
+    def __init__(self, model: mujoco.MjModel, axes: str, f: str, g: str):
+        self.axes = AXES.index(axes[0]), AXES.index(axes[1])
+        self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
+        self.frames = (f, g)
+        self.spec = f"scalarProduct{axes}({f}, {g})"
+        self._c = np.zeros(3)
+        self._dJ = np.zeros((3, model.nv))
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f, self.g)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        sf, sg = cache[self.f], cache[self.g]
+        a, b = sf.rot[:, self.axes[0]], sg.rot[:, self.axes[1]]
+        y[0] = a @ b
+        mujoco.mju_cross(self._c, a, b)
+        np.subtract(sf.jacr, sg.jacr, out=self._dJ)
+        np.dot(self._c, self._dJ, out=J[0])
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        return y
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True

@@ -1,0 +1,109 @@
+"""Position task maps: position, positionDiff, positionRel (RAI feature symbols)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .base import TaskMap
+from .frames import Frame, FrameCache, resolve_frame
+
+
+def skew(v: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Writes the cross-product matrix [v]x (3, 3) of v (3,) into `out` (so [v]x w = v x w)."""
+    x, y, z = v
+    out[0, 0], out[0, 1], out[0, 2] = 0.0, -z, y
+    out[1, 0], out[1, 1], out[1, 2] = z, 0.0, -x
+    out[2, 0], out[2, 1], out[2, 2] = -y, x, 0.0
+    return out
+
+
+class Position(TaskMap):
+    """position(f): world position p_f (3,) of frame f; J = Jp_f (3, nv)."""
+
+    dim = 3
+
+    def __init__(self, model: mujoco.MjModel, f: str):
+        self.f = resolve_frame(model, f)
+        self.frames = (f,)
+        self.spec = f"position({f})"
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f,)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        s = cache[self.f]
+        y[:] = s.pos
+        J[:] = s.jacp
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        return y + delta
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True
+
+
+class PositionDiff(TaskMap):
+    """positionDiff(f, g): p_f - p_g (3,) in world coordinates; J = Jp_f - Jp_g (3, nv)."""
+
+    dim = 3
+
+    def __init__(self, model: mujoco.MjModel, f: str, g: str):
+        self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
+        self.frames = (f, g)
+        self.spec = f"positionDiff({f}, {g})"
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f, self.g)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        sf, sg = cache[self.f], cache[self.g]
+        np.subtract(sf.pos, sg.pos, out=y)
+        np.subtract(sf.jacp, sg.jacp, out=J)
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        sign = (frame == self.f.name) - (frame == self.g.name)
+        return y + sign * delta
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return True
+
+
+class PositionRel(TaskMap):
+    """positionRel(f, g): p_f expressed in frame g, R_g^T (p_f - p_g) (3,).
+
+    J = R_g^T (Jp_f - Jp_g + [p_f - p_g]x Jr_g) (3, nv): the last term is the rotation of g.
+    """
+
+    dim = 3
+
+    def __init__(self, model: mujoco.MjModel, f: str, g: str):
+        self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
+        self.frames = (f, g)
+        self.spec = f"positionRel({f}, {g})"
+        self._v = np.zeros(3)
+        self._skew = np.zeros((3, 3))
+        self._Jw = np.zeros((3, model.nv))
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return (self.f, self.g)
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        sf, sg = cache[self.f], cache[self.g]
+        v, Jw = self._v, self._Jw
+        np.subtract(sf.pos, sg.pos, out=v)
+        np.dot(v, sg.rot, out=y)  # R_g^T v
+        np.dot(skew(v, self._skew), sg.jacr, out=Jw)
+        Jw += sf.jacp
+        Jw -= sg.jacp
+        np.dot(sg.rot.T, Jw, out=J)
+
+    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        if frame == self.f.name and frame != self.g.name and self.g.kind == "body" and self.g.id == 0:
+            return y + delta  # g is the world: R_g = I
+        return super()._translated(y, frame, delta)  # R_g^T delta needs R_g, which y does not hold
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        # With g jointless (Jr_g = 0, Jp_g = 0), J = R_g^T Jp_f does not depend on p_g; with f
+        # jointless, J = R_g^T (-Jp_g + [p_f - p_g]x Jr_g) does depend on p_f.
+        return frame != self.f.name

@@ -1,0 +1,196 @@
+"""Task-map specs: "position(tcp), velocity(positionDiff(tcp, target))" -> Stack; registry and presets."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+
+import mujoco
+
+from ..exceptions import SpecError, UnknownTaskMap
+from .base import TaskMap
+from .collision import AccumulatedCollisions, Distance
+from .joint import JointLimits, JointState
+from .orientation import AXES, Quaternion, QuaternionDiff, ScalarProduct, Vector
+from .position import Position, PositionDiff, PositionRel
+from .stack import Stack
+from .velocity import Velocity
+
+#: The paper's observation configurations (Table I) for the reach task, as specs; a spec may name one.
+OBS_PRESETS: dict[str, str] = {
+    "baseline": "position(tcp), velocity(position(tcp))",
+    "simple": "positionDiff(tcp, target), velocity(positionDiff(tcp, target))",
+    "fs0": "position(tcp), position(target), positionDiff(tcp, target)",
+    "fs1": "fs0, velocity(position(tcp)), velocity(positionDiff(tcp, target))",
+    "fs2": "fs1, quaternion(tcp), quaternionDiff(tcp, target)",
+}
+
+
+@dataclass(frozen=True)
+class MapEntry:
+    """How the parser builds one map: argument kinds ("frame", "geom" or "map") and a builder."""
+
+    args: tuple[str, ...]
+    build: Callable[..., TaskMap]  # build(model, *args); a "map" argument arrives built
+
+
+def _velocity(model: mujoco.MjModel, task_map: TaskMap) -> TaskMap:
+    return Velocity(task_map)
+
+
+def _axis_map(cls: type[Vector | ScalarProduct], axes: str, model: mujoco.MjModel, *frames: str) -> TaskMap:
+    return cls(model, axes, *frames)
+
+
+#: Every map name the parser knows (RAI feature symbols) -> its arguments and builder.
+TASK_MAPS: dict[str, MapEntry] = {
+    "position": MapEntry(("frame",), Position),
+    "positionDiff": MapEntry(("frame", "frame"), PositionDiff),
+    "positionRel": MapEntry(("frame", "frame"), PositionRel),
+    "quaternion": MapEntry(("frame",), Quaternion),
+    "quaternionDiff": MapEntry(("frame", "frame"), QuaternionDiff),
+    **{f"vector{a}": MapEntry(("frame",), partial(_axis_map, Vector, a)) for a in AXES},
+    **{
+        f"scalarProduct{a}{b}": MapEntry(("frame", "frame"), partial(_axis_map, ScalarProduct, a + b))
+        for a in AXES
+        for b in AXES
+    },
+    "distance": MapEntry(("geom", "geom"), Distance),
+    "accumulatedCollisions": MapEntry((), AccumulatedCollisions),
+    "jointState": MapEntry((), JointState),
+    "jointLimits": MapEntry((), JointLimits),
+    "velocity": MapEntry(("map",), _velocity),
+}
+
+
+def known_maps() -> tuple[str, ...]:
+    """Names of every task map the parser knows (presets not included)."""
+    return tuple(TASK_MAPS)
+
+
+def parse_spec(spec: str, model: mujoco.MjModel) -> Stack:
+    """Builds the task maps of a spec, e.g. "fs1, quaternion(tcp), scalarProductZZ(world, tcp)".
+
+    A spec is a comma-separated list of maps `name(arg, ...)` (no parentheses for maps without
+    arguments) and preset names (`OBS_PRESETS`), which expand in place. Arguments are frame names
+    (sites, else bodies; `world` is the world body), geom names (`distance`) or a map (`velocity`).
+    Always returns a Stack, even for one map, so `slices` names every part.
+
+    Raises:
+        UnknownTaskMap: a name that is neither a map nor a preset (the message lists both).
+        UnknownName: a frame or geom the model does not have (the message lists the model's).
+        SpecError: a syntax error (with its position), a wrong argument count (with the expected
+            count), or a map that appears twice.
+    """
+    return Stack(_Parser(spec).parse(model, ()))
+
+
+@dataclass(frozen=True)
+class _Node:
+    name: str
+    args: tuple[_Node, ...] | None  # None: written without parentheses
+    pos: int
+
+    def text(self) -> str:
+        if self.args is None:
+            return self.name
+        return f"{self.name}({', '.join(a.text() for a in self.args)})"
+
+
+_TOKEN = re.compile(r"\s*(?:(?P<name>[^\s,()]+)|(?P<punct>[,()]))")
+
+
+class _Parser:
+    """Recursive descent over: spec := item ("," item)* ; item := NAME ["(" [item ("," item)*] ")"]."""
+
+    def __init__(self, spec: str):
+        self.spec = spec
+        self.tokens: list[tuple[str, str, int]] = []  # (kind, text, position)
+        pos = 0
+        while pos < len(spec):
+            m = _TOKEN.match(spec, pos)
+            if m is None:  # only trailing whitespace is left
+                break
+            group = "name" if m.group("name") else "punct"
+            kind = "name" if group == "name" else m.group("punct")
+            self.tokens.append((kind, m.group(group), m.start(group)))
+            pos = m.end()
+        self.tokens.append(("end", "", len(spec)))
+        self.i = 0
+
+    def error(self, message: str, pos: int) -> SpecError:
+        return SpecError(f"{message} at position {pos} of spec {self.spec!r}")
+
+    def expect(self, kind: str) -> tuple[str, str, int]:
+        tok = self.tokens[self.i]
+        if tok[0] != kind:
+            found = "the end" if tok[0] == "end" else repr(tok[1])
+            wanted = "a name" if kind == "name" else repr(kind)
+            raise self.error(f"expected {wanted}, found {found}", tok[2])
+        self.i += 1
+        return tok
+
+    def items(self) -> list[_Node]:
+        nodes = [self.item()]
+        while self.tokens[self.i][0] == ",":
+            self.i += 1
+            nodes.append(self.item())
+        return nodes
+
+    def item(self) -> _Node:
+        _, name, pos = self.expect("name")
+        if self.tokens[self.i][0] != "(":
+            return _Node(name, None, pos)
+        self.i += 1
+        args: list[_Node] = []
+        if self.tokens[self.i][0] != ")":
+            args = self.items()
+        self.expect(")")
+        return _Node(name, tuple(args), pos)
+
+    def parse(self, model: mujoco.MjModel, presets: tuple[str, ...]) -> list[TaskMap]:
+        if not self.spec.strip():
+            raise self.error("empty spec; expected task maps or presets", 0)
+        nodes = self.items()
+        self.expect("end")
+        maps: list[TaskMap] = []
+        for node in nodes:
+            maps.extend(self.build(node, model, presets))
+        return maps
+
+    def build(self, node: _Node, model: mujoco.MjModel, presets: tuple[str, ...]) -> list[TaskMap]:
+        if node.name in OBS_PRESETS:
+            if node.args is not None:
+                raise self.error(f"preset {node.name} takes no arguments", node.pos)
+            if node.name in presets:
+                raise self.error(f"preset {node.name} refers to itself", node.pos)
+            return _Parser(OBS_PRESETS[node.name]).parse(model, (*presets, node.name))
+        entry = TASK_MAPS.get(node.name)
+        if entry is None:
+            raise UnknownTaskMap(node.name, [*TASK_MAPS, *OBS_PRESETS])
+        args = node.args or ()
+        if len(args) != len(entry.args):
+            kinds = ", ".join(entry.args) or "none"
+            raise self.error(
+                f"{node.name} expects {len(entry.args)} argument(s) ({kinds}), got {len(args)}", node.pos
+            )
+        values: list[object] = []
+        for k, (kind, arg) in enumerate(zip(entry.args, args), start=1):
+            if kind == "map":
+                if arg.name in OBS_PRESETS:
+                    raise self.error(
+                        f"argument {k} of {node.name} must be one task map, not a preset", arg.pos
+                    )
+                values.extend(self.build(arg, model, presets))
+            elif arg.args is not None:
+                raise self.error(
+                    f"argument {k} of {node.name} must be a {kind} name, got {arg.text()}", arg.pos
+                )
+            else:
+                values.append(arg.name)
+        try:
+            return [entry.build(model, *values)]
+        except SpecError as err:
+            raise self.error(str(err), node.pos) from None

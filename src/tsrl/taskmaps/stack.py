@@ -1,0 +1,66 @@
+"""Stack: the multi-task map, values concatenated and Jacobians stacked, with named slices."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from ..exceptions import SpecError
+from .base import TaskMap
+from .frames import Frame, FrameCache
+
+
+class Stack(TaskMap):
+    """Parts' values concatenated (dim = sum of parts) and Jacobians stacked (dim, nv).
+
+    Nested stacks are flattened. `slices[part.spec]` is the part's rows, e.g.
+    `stack.slices["position(tcp)"]`; the slices tile 0..dim in order. One frame cache serves all
+    parts, so each frame's pose and Jacobian is computed once per call.
+    """
+
+    def __init__(self, parts: Iterable[TaskMap]):
+        flat: list[TaskMap] = []
+        for p in parts:
+            flat.extend(p.parts if isinstance(p, Stack) else [p])
+        if not flat:
+            raise SpecError("a stack needs at least one task map")
+        self.parts = tuple(flat)
+        self.slices: dict[str, slice] = {}
+        start = 0
+        for p in self.parts:
+            if p.spec in self.slices:
+                raise SpecError(f"task map {p.spec} appears twice in the stack")
+            self.slices[p.spec] = slice(start, start + p.dim)
+            start += p.dim
+        self.dim = start
+        self.spec = ", ".join(p.spec for p in self.parts)
+        self.frames = tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
+        self._spans = tuple(self.slices.values())
+
+    def frame_refs(self) -> tuple[Frame, ...]:
+        return tuple(f for p in self.parts for f in p.frame_refs())
+
+    def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        for part, span in zip(self.parts, self._spans):
+            part.evaluate(cache, y[span], J[span])
+
+    def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        out = np.subtract(a, b)
+        for part, span in zip(self.parts, self._spans):
+            out[..., span] = part.difference(a[..., span], b[..., span])
+        return out
+
+    def translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
+        y = np.array(y, dtype=np.float64)
+        if frame not in self.frames:
+            return y
+        for part, span in zip(self.parts, self._spans):
+            y[..., span] = part.translated(y[..., span], frame, delta)
+        return y
+
+    def jacobian_translation_invariant(self, frame: str) -> bool:
+        return all(p.jacobian_translation_invariant(frame) for p in self.parts)
+
+    def __len__(self) -> int:
+        return len(self.parts)
