@@ -81,8 +81,8 @@ def parse_spec(spec: str, model: mujoco.MjModel) -> Stack:
     Raises:
         UnknownTaskMap: a name that is neither a map nor a preset (the message lists both).
         UnknownName: a frame or geom the model does not have (the message lists the model's).
-        SpecError: a syntax error (with its position), a wrong argument count (with the expected
-            count), or a map that appears twice.
+        SpecError: a syntax error (with its position) or a wrong argument count (with the expected
+            count).
     """
     return Stack(_Parser(spec).parse(model, ()))
 

@@ -15,8 +15,9 @@ class Stack(TaskMap):
     """Parts' values concatenated (dim = sum of parts) and Jacobians stacked (dim, nv).
 
     Nested stacks are flattened. `slices[part.spec]` is the part's rows, e.g.
-    `stack.slices["position(tcp)"]`; the slices tile 0..dim in order. One frame cache serves all
-    parts, so each frame's pose and Jacobian is computed once per call.
+    `stack.slices["position(tcp)"]`; a part that appears again is keyed "position(tcp)#2", and so
+    on, so the slices always tile 0..dim in order. One frame cache serves all parts, so each
+    frame's pose and Jacobian is computed once per call.
     """
 
     def __init__(self, parts: Iterable[TaskMap]):
@@ -29,9 +30,11 @@ class Stack(TaskMap):
         self.slices: dict[str, slice] = {}
         start = 0
         for p in self.parts:
-            if p.spec in self.slices:
-                raise SpecError(f"task map {p.spec} appears twice in the stack")
-            self.slices[p.spec] = slice(start, start + p.dim)
+            key, n = p.spec, 1
+            while key in self.slices:  # a repeated part is keyed "position(tcp)#2", "#3", ...
+                n += 1
+                key = f"{p.spec}#{n}"
+            self.slices[key] = slice(start, start + p.dim)
             start += p.dim
         self.dim = start
         self.spec = ", ".join(p.spec for p in self.parts)
