@@ -127,7 +127,7 @@ class _Parser:
         tok = self.tokens[self.i]
         if tok[0] != kind:
             found = "the end" if tok[0] == "end" else repr(tok[1])
-            wanted = "a name" if kind == "name" else repr(kind)
+            wanted = {"name": "a name", "end": "the end"}.get(kind, repr(kind))
             raise self.error(f"expected {wanted}, found {found}", tok[2])
         self.i += 1
         return tok
