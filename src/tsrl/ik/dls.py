@@ -1,0 +1,395 @@
+"""Damped least-squares IK over task maps: `dls_step` (pure), `ik_step` (one step), `solve_ik` (loop).
+
+The maths and the benchmark behind the defaults are in docs/ik.md.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..assets.ur5e import JOINT_NAMES
+from ..exceptions import InvalidConfig
+from ..kinematics import name_to_id
+from ..taskmaps.base import TaskMap, TaskMapValue
+
+#: Stop when ||W (y* - y)|| falls below this.
+DEFAULT_TOL = 1e-4
+#: Iterations per attempt (the start and each restart).
+DEFAULT_MAX_ITERS = 100
+#: Restarts from random seeds after an attempt stalls.
+DEFAULT_RESTARTS = 30
+#: Damping floor lambda_0 of lambda = lambda_0 + lambda_e ||e||^2.
+DEFAULT_DAMPING = 1e-6
+#: Error-proportional damping lambda_e (Levenberg-Marquardt in the style of Sugihara 2011).
+DEFAULT_ADAPTIVE_DAMPING = 1e-3
+#: Largest joint step ||dq||_2 per iteration [rad for hinges].
+DEFAULT_MAX_STEP = 1.0
+#: Gain k of the posture term dq_0 = k (q_posture - q), projected onto the null space of J.
+DEFAULT_POSTURE_GAIN = 0.1
+
+#: An attempt has stalled when its error is above STALL_RATIO times the error STALL_WINDOW
+#: iterations earlier; it then gives way to a restart (while restarts are left).
+STALL_WINDOW = 8
+STALL_RATIO = 0.5
+
+_HINGE, _SLIDE = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
+_MIN_PIVOT = 1e-300  # keeps mju_cholFactor away from sqrt(negative) in round-off; damping > 0 does the rest
+
+
+class IKResult(NamedTuple):
+    """What `solve_ik` found, converged or not."""
+
+    q: np.ndarray  # (n,) positions of the moved joints (the six arm joints by default), within limits
+    error_norm: float  # ||W (y* - y)|| at q, y* - y from task_map.difference, W = diag(weights)
+    iterations: int  # steps taken over all attempts; a jump to a restart seed counts as one
+    converged: bool  # error_norm < tol
+    error_history: tuple[float, ...]  # error norm at the start and after each iteration (iterations + 1)
+
+
+def dls_step(
+    J: ArrayLike, error: ArrayLike, damping: float, nullspace: ArrayLike | None = None
+) -> np.ndarray:
+    r"""Damped least squares: dq = J^T (J J^T + damping I)^{-1} error (the paper's step, eps = damping).
+
+    .. math:: \Delta q = J^T (J J^T + \lambda I)^{-1} e
+
+    With `nullspace` d (n,), the step also moves along d inside the (damped) null space of J:
+    dq = d + J^T (J J^T + damping I)^{-1} (error - J d), which is J^+ e + (I - J^+ J) d with the
+    damped pseudo-inverse J^+. Solved by Cholesky in the smaller of the task (k x k) and joint
+    (n x n) spaces, which give the same dq. Pure: the inputs are not changed.
+
+    Args:
+        J: task Jacobian (k, n).
+        error: y* - y (k,).
+        damping: lambda > 0.
+        nullspace: optional joint step d (n,) for the null space.
+
+    Returns:
+        dq (n,).
+    """
+    J = np.ascontiguousarray(J, dtype=np.float64)
+    e = np.ascontiguousarray(error, dtype=np.float64)
+    k, n = J.shape
+    if nullspace is not None:
+        d = np.asarray(nullspace, dtype=np.float64)
+        e = e - J @ d
+    dq = np.empty(n)
+    if k <= n:  # task space: (J J^T + lambda I) x = e, dq = J^T x
+        A = np.empty((k, k))
+        mujoco.mju_mulMatMatT(A, J, J)
+        A.flat[:: k + 1] += damping
+        mujoco.mju_cholFactor(A, _MIN_PIVOT)
+        x = np.empty(k)
+        mujoco.mju_cholSolve(x, A, e)
+        mujoco.mju_mulMatTVec(dq, J, x)
+    else:  # joint space: (J^T J + lambda I) dq = J^T e
+        A = np.empty((n, n))
+        mujoco.mju_mulMatTMat(A, J, J)
+        A.flat[:: n + 1] += damping
+        mujoco.mju_cholFactor(A, _MIN_PIVOT)
+        b = np.empty(n)
+        mujoco.mju_mulMatTVec(b, J, e)
+        mujoco.mju_cholSolve(dq, A, b)
+    if nullspace is not None:
+        dq += d
+    return dq
+
+
+class _Joints:
+    """Addresses and limits of the joints the solver moves (hinge or slide, one qpos and dof each)."""
+
+    def __init__(self, model: mujoco.MjModel, names: tuple[str, ...]):
+        if len(set(names)) != len(names) or not names:
+            raise InvalidConfig(f"joints must be distinct joint names; got {names!r}")
+        ids = [name_to_id(model, "joint", n) for n in names]
+        types = [int(model.jnt_type[j]) for j in ids]  # mujoco 4 enums: compare as int
+        for n, t in zip(names, types):
+            if t not in (_HINGE, _SLIDE):
+                raise InvalidConfig(f"joint {n!r} is not a hinge or slide joint; the IK moves only those")
+        self.qadr = np.array([model.jnt_qposadr[j] for j in ids])
+        dadr = np.array([model.jnt_dofadr[j] for j in ids])
+        # None: the moved dofs are all of J's columns, in order, so J needs no column selection.
+        self.dadr = None if np.array_equal(dadr, np.arange(model.nv)) else dadr
+        limited = np.array([bool(model.jnt_limited[j]) for j in ids])
+        rng = model.jnt_range[ids]
+        self.lo = np.where(limited, rng[:, 0], -np.inf)
+        self.hi = np.where(limited, rng[:, 1], np.inf)
+        # Restart seeds: hinges within [-pi, pi] (every angle once), slides within their range.
+        hinge = np.array([t == _HINGE for t in types])
+        self.seed_lo = np.where(hinge, np.maximum(self.lo, -np.pi), np.where(limited, self.lo, 0.0))
+        self.seed_hi = np.where(hinge, np.minimum(self.hi, np.pi), np.where(limited, self.hi, 0.0))
+
+
+_JOINTS: weakref.WeakKeyDictionary[mujoco.MjModel, dict[tuple[str, ...], _Joints]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _joints(model: mujoco.MjModel, names: Sequence[str] | None) -> _Joints:
+    key = JOINT_NAMES if names is None else tuple(names)
+    per_model = _JOINTS.setdefault(model, {})
+    joints = per_model.get(key)
+    if joints is None:
+        joints = per_model[key] = _Joints(model, key)
+    return joints
+
+
+def _positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    v = float(value)
+    if not (v >= 0.0 if allow_zero else v > 0.0) or math.isnan(v):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise InvalidConfig(f"{name} must be {bound}; got {value!r}")
+    return v
+
+
+def _count(name: str, value: int, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidConfig(f"{name} must be an integer >= {minimum}; got {value!r}")
+    return int(value)
+
+
+def _vector(name: str, value: ArrayLike, size: int, what: str) -> np.ndarray:
+    v = np.asarray(value, dtype=np.float64)
+    if v.shape != (size,):
+        raise InvalidConfig(f"{name} has shape {v.shape}; expected ({size},) {what}")
+    if not np.all(np.isfinite(v)):
+        raise InvalidConfig(f"{name} must be finite; got {v!r}")
+    return v
+
+
+class _Problem:
+    """One call's validated inputs and the residual e = W (y* - y) with its Jacobian W J[:, moved]."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        task_map: TaskMap,
+        target: ArrayLike,
+        weights: ArrayLike | None,
+        posture: ArrayLike | None,
+        posture_gain: float,
+        joints: Sequence[str] | None,
+    ):
+        self.model, self.data, self.task_map = model, data, task_map
+        self.joints = _joints(model, joints)
+        n = len(self.joints.qadr)
+        self.target = _vector("target", target, task_map.dim, f"for task map {task_map!r}")
+        self.weights = None if weights is None else _vector("weights", weights, task_map.dim, "per row")
+        if self.weights is not None and np.any(self.weights < 0.0):
+            raise InvalidConfig(f"weights must be >= 0; got {self.weights!r}")
+        self.posture = None if posture is None else _vector("posture", posture, n, "joint positions")
+        self.posture_gain = _positive("posture_gain", posture_gain, allow_zero=True)
+
+    def current(self) -> np.ndarray:
+        """The moved joints' positions in data (n,), a copy; raises InvalidConfig if not finite."""
+        q = self.data.qpos[self.joints.qadr]
+        if not np.all(np.isfinite(q)):
+            raise InvalidConfig(f"data.qpos holds non-finite joint positions {q!r}")
+        return q
+
+    def evaluate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Sets the joints to q in data, runs the kinematics and returns (e, W J, ||e||)."""
+        model, data = self.model, self.data
+        data.qpos[self.joints.qadr] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        return self.residual(self.task_map(model, data))
+
+    def residual(self, value: TaskMapValue) -> tuple[np.ndarray, np.ndarray, float]:
+        """(e (k,), W J (k, n), ||e||) for a task-map value."""
+        y, J = value
+        e = self.task_map.difference(self.target, y)
+        if self.joints.dadr is not None:
+            J = J[:, self.joints.dadr]
+        if self.weights is not None:
+            e = e * self.weights
+            J = J * self.weights[:, None]
+        return e, J, math.sqrt(e @ e)
+
+    def checked_value(self, value: TaskMapValue) -> TaskMapValue:
+        y, J = value
+        dim, nv = self.task_map.dim, self.model.nv
+        if np.shape(y) != (dim,) or np.shape(J) != (dim, nv):
+            raise InvalidConfig(
+                f"initial_value has y {np.shape(y)} and J {np.shape(J)}; expected ({dim},) and ({dim}, {nv})"
+            )
+        return value
+
+    def step(
+        self, q: np.ndarray, e: np.ndarray, J: np.ndarray, err: float, damping: float, adaptive: float
+    ) -> np.ndarray:
+        """One damped least-squares step from q (n,) to a new q within the limits (n,), unbounded step."""
+        lam = damping + adaptive * err * err
+        d = None if self.posture is None else self.posture_gain * (self.posture - q)
+        return dls_step(J, e, lam, d)
+
+    def clipped(self, q: np.ndarray) -> np.ndarray:
+        return np.clip(q, self.joints.lo, self.joints.hi, out=q)
+
+
+def _bounded(dq: np.ndarray, max_step: float) -> np.ndarray:
+    norm = math.sqrt(dq @ dq)
+    if norm > max_step:
+        dq *= max_step / norm
+    return dq
+
+
+def ik_step(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    task_map: TaskMap,
+    target: ArrayLike,
+    *,
+    initial_value: TaskMapValue | None = None,
+    weights: ArrayLike | None = None,
+    damping: float = DEFAULT_DAMPING,
+    adaptive_damping: float = DEFAULT_ADAPTIVE_DAMPING,
+    max_step: float = DEFAULT_MAX_STEP,
+    posture: ArrayLike | None = None,
+    posture_gain: float = DEFAULT_POSTURE_GAIN,
+    joints: Sequence[str] | None = None,
+) -> np.ndarray:
+    """One linearised step from the configuration in `data`: q + dq within the joint limits (n,).
+
+    The paper's formula q* = q + J^T (J J^T + lambda I)^{-1} (y* - y), with the damping, weights,
+    posture term and step bound of `solve_ik`, for use inside a control loop. `data.qpos` and
+    `data.qvel` are not changed. With `initial_value` (the map's value at data's configuration,
+    e.g. the one the environment computed this step) nothing is evaluated; without it the
+    kinematics in `data` are refreshed (mj_kinematics + mj_comPos) and the map is evaluated.
+    Options as in `solve_ik`; raises InvalidConfig on bad input.
+    """
+    problem = _Problem(model, data, task_map, target, weights, posture, posture_gain, joints)
+    damping = _positive("damping", damping)
+    adaptive_damping = _positive("adaptive_damping", adaptive_damping, allow_zero=True)
+    max_step = _positive("max_step", max_step)
+    q = problem.current()  # linearised at data's own q, even outside the limits; the result is clipped
+    if initial_value is None:
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        initial_value = task_map(model, data)
+    e, J, err = problem.residual(problem.checked_value(initial_value))
+    dq = _bounded(problem.step(q, e, J, err, damping, adaptive_damping), max_step)
+    return problem.clipped(q + dq)
+
+
+def solve_ik(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    task_map: TaskMap,
+    target: ArrayLike,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iters: int = DEFAULT_MAX_ITERS,
+    restarts: int = DEFAULT_RESTARTS,
+    seed: int = 0,
+    weights: ArrayLike | None = None,
+    damping: float = DEFAULT_DAMPING,
+    adaptive_damping: float = DEFAULT_ADAPTIVE_DAMPING,
+    max_step: float = DEFAULT_MAX_STEP,
+    posture: ArrayLike | None = None,
+    posture_gain: float = DEFAULT_POSTURE_GAIN,
+    joints: Sequence[str] | None = None,
+    initial_value: TaskMapValue | None = None,
+) -> IKResult:
+    r"""Joint positions q that bring task_map(q) to `target`, starting from the configuration in `data`.
+
+    Iterates damped least-squares steps q <- clip(q + dq), dq = J^T (J J^T + lambda I)^{-1} W e with
+    e = y* - y, adaptive damping lambda = damping + adaptive_damping ||W e||^2, ||dq|| <= max_step,
+    until ||W e|| < tol. An attempt that stalls (error above STALL_RATIO times its value
+    STALL_WINDOW iterations earlier) gives way to a restart from a random configuration within the
+    limits, up to `restarts` times. Never raises on non-convergence and never returns NaN.
+
+    `data` is the workspace: on return its qpos holds the returned q at the moved joints (other
+    coordinates, such as a free object's, are never written) and its kinematics (mj_kinematics +
+    mj_comPos) are up to date. Pass a scratch MjData where the physics state must stay untouched.
+
+    Args:
+        model, data: the MuJoCo model and the data holding the start configuration.
+        task_map: the map phi (dim rows); a `Stack` for several maps.
+        target: desired value y* (dim,).
+        tol: convergence threshold on ||W e|| (units of the map's rows).
+        max_iters: iterations per attempt.
+        restarts: restarts from random seeds after a stalled attempt; 0 for a purely local solve.
+        seed: seed of the restart configurations (the solve is deterministic).
+        weights: per-row weights W (dim,), >= 0; default all ones.
+        damping: damping floor lambda_0 > 0 (the paper's eps).
+        adaptive_damping: lambda_e >= 0, the error-proportional part of the damping.
+        max_step: largest ||dq||_2 per iteration.
+        posture: optional joint positions (n,) pursued in the null space of the task.
+        posture_gain: k of the posture step k (posture - q).
+        joints: names of the hinge or slide joints to move; default the six UR5e arm joints.
+        initial_value: the map's value at the start configuration, when the caller has it; the
+            first evaluation is then skipped (and `data` is not touched if the start already meets tol).
+
+    Returns:
+        IKResult: the first converged iterate; if no attempt converges, the lowest-error iterate of
+        the first attempt (the local least-squares compromise, not a far-away restart).
+
+    Raises:
+        InvalidConfig: a target, weight, posture or option of the wrong shape or value, or NaN.
+        UnknownName: a joint name the model does not have.
+    """
+    problem = _Problem(model, data, task_map, target, weights, posture, posture_gain, joints)
+    tol = _positive("tol", tol)
+    max_iters = _count("max_iters", max_iters, 1)
+    restarts = _count("restarts", restarts, 0)
+    damping = _positive("damping", damping)
+    adaptive_damping = _positive("adaptive_damping", adaptive_damping, allow_zero=True)
+    max_step = _positive("max_step", max_step)
+
+    q = problem.current()
+    inside = bool(np.all(q >= problem.joints.lo) and np.all(q <= problem.joints.hi))
+    if not inside:
+        problem.clipped(q)
+    if initial_value is not None and inside:
+        e, J, err = problem.residual(problem.checked_value(initial_value))
+        evaluated = None  # data not touched yet
+    else:
+        e, J, err = problem.evaluate(q)
+        evaluated = q  # the configuration whose kinematics data holds
+    history = [err]
+    best_q, best_err = q, err  # over the first attempt, until one converges
+    seeds: np.random.Generator | None = None
+    for attempt in range(restarts + 1):
+        if attempt > 0:
+            if seeds is None:
+                seeds = np.random.default_rng(seed)
+            q = seeds.uniform(problem.joints.seed_lo, problem.joints.seed_hi)
+            e, J, err = problem.evaluate(q)
+            evaluated = q
+            history.append(err)
+        first = len(history) - 1
+        for _ in range(max_iters):
+            if err < tol:
+                break
+            if (
+                attempt < restarts
+                and len(history) - first > STALL_WINDOW
+                and err > STALL_RATIO * history[-1 - STALL_WINDOW]
+            ):
+                break
+            dq = problem.step(q, e, J, err, damping, adaptive_damping)
+            if not np.all(np.isfinite(dq)):
+                break
+            q = problem.clipped(q + _bounded(dq, max_step))
+            e, J, err = problem.evaluate(q)
+            evaluated = q
+            if not math.isfinite(err):
+                err = math.inf
+            history.append(err)
+            if attempt == 0 and err < best_err:
+                best_q, best_err = q, err
+        if err < tol:
+            best_q, best_err = q, err
+            break
+    if evaluated is not None and best_q is not evaluated:
+        problem.evaluate(best_q)
+    return IKResult(best_q.copy(), best_err, len(history) - 1, best_err < tol, tuple(history))
