@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import mujoco
 import numpy as np
 import pytest
@@ -184,3 +186,29 @@ def test_returned_arrays_are_fresh(ur5e, rng):
     stack(model, data)
     np.testing.assert_array_equal(first.y, kept[0])
     np.testing.assert_array_equal(first.J, kept[1])
+
+
+def test_static_frames_have_zero_jacobian(ur5e, rng):
+    model, data = ur5e
+    stack = parse_spec("position(target), quaternion(target), position(world), vectorZ(base)", model)
+    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    np.testing.assert_array_equal(stack(model, data).J, 0.0)
+
+
+def test_one_map_on_two_data_objects(reach_model, rng):
+    stack = parse_spec("fs2, positionRel(tcp, upper_arm_link)", reach_model)
+    datas = [mujoco.MjData(reach_model) for _ in range(2)]
+    for data, q in zip(datas, random_configurations(rng, 2)):
+        forward_kinematics(reach_model, data, q)
+    expected = [parse_spec(stack.spec, reach_model)(reach_model, d).y for d in datas]  # fresh maps
+    for _ in range(2):  # alternate: the cache re-binds to whichever data it is given
+        for data, y in zip(datas, expected):
+            np.testing.assert_array_equal(stack(reach_model, data).y, y)
+
+
+def test_maps_pickle_after_use(ur5e):
+    model, data = ur5e
+    stack = parse_spec("fs2, distance(suction_cup, table), jointLimits", model)
+    y = stack(model, data).y
+    clone = pickle.loads(pickle.dumps(stack))
+    np.testing.assert_array_equal(clone(model, data).y, y)

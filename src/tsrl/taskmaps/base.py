@@ -91,6 +91,7 @@ class TaskMap(abc.ABC):
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state.pop("_workspace", None)  # holds the model and data of the last call; rebuilt on demand
+        state.pop("_views", None)  # a Stack's views into the workspace buffers
         return state
 
 

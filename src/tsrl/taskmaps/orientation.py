@@ -12,19 +12,6 @@ from .position import skew
 AXES = "XYZ"
 
 
-def quat_rate_matrix(q: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """Writes E(q) (4, 3) with dq/dt = E(q) w for q = (w, x, y, z) and world angular velocity w.
-
-    From dq/dt = 1/2 (0, w) * q (Hamilton product, w in world coordinates).
-    """
-    w, x, y, z = 0.5 * q
-    out[0] = -x, -y, -z
-    out[1] = w, z, -y
-    out[2] = -z, w, x
-    out[3] = y, -x, w
-    return out
-
-
 def _aligned_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a - s b with s = sign(a . b) per row, so that q and -q (one orientation) are not far apart."""
     s = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
@@ -35,7 +22,8 @@ class Quaternion(TaskMap):
     """quaternion(f): world orientation of f as a unit quaternion (w, x, y, z) (4,).
 
     Composed along the kinematic chain as MuJoCo's `xquat` (for a site: body xquat * site quat),
-    so it is continuous in q; never re-derived from a rotation matrix. J = E(q) Jr_f (4, nv).
+    so it is continuous in q; never re-derived from a rotation matrix. J = E(q) Jr_f (4, nv), with
+    dq/dt = E(q) w = 1/2 (0, w) * q for the world angular velocity w (`frames.quat_rate_matrix`).
     """
 
     dim = 4
@@ -44,15 +32,13 @@ class Quaternion(TaskMap):
         self.f = resolve_frame(model, f)
         self.frames = (f,)
         self.spec = f"quaternion({f})"
-        self._E = np.zeros((4, 3))
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return (self.f,)
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
-        s = cache[self.f]
-        y[:] = s.quat
-        np.dot(quat_rate_matrix(s.quat, self._E), s.jacr, out=J)
+        y[:] = cache[self.f].quat
+        J[:] = cache.quaternion_jacobian(self.f)
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return _aligned_difference(a, b)
@@ -76,23 +62,19 @@ class QuaternionDiff(TaskMap):
         self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
         self.frames = (f, g)
         self.spec = f"quaternionDiff({f}, {g})"
-        self._E = np.zeros((4, 3))
-        self._Jg = np.zeros((4, model.nv))
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return (self.f, self.g)
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
-        sf, sg = cache[self.f], cache[self.g]
-        s = -1.0 if np.dot(sf.quat, sg.quat) < 0.0 else 1.0
-        np.dot(quat_rate_matrix(sf.quat, self._E), sf.jacr, out=J)
-        np.dot(quat_rate_matrix(sg.quat, self._E), sg.jacr, out=self._Jg)
-        if s > 0:
-            np.subtract(sf.quat, sg.quat, out=y)
-            J -= self._Jg
+        q_f, q_g = cache[self.f].quat, cache[self.g].quat
+        Jq_f, Jq_g = cache.quaternion_jacobian(self.f), cache.quaternion_jacobian(self.g)
+        if np.dot(q_f, q_g) < 0.0:
+            np.add(q_f, q_g, out=y)
+            np.add(Jq_f, Jq_g, out=J)
         else:
-            np.add(sf.quat, sg.quat, out=y)
-            J += self._Jg
+            np.subtract(q_f, q_g, out=y)
+            np.subtract(Jq_f, Jq_g, out=J)
 
     def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
         return y

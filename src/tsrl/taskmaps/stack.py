@@ -20,6 +20,9 @@ class Stack(TaskMap):
     frame's pose and Jacobian is computed once per call.
     """
 
+    #: (y, J, [(part, y rows, J rows)]): the parts' views into the last output buffers.
+    _views: tuple[np.ndarray, np.ndarray, list[tuple[TaskMap, np.ndarray, np.ndarray]]] | None = None
+
     def __init__(self, parts: Iterable[TaskMap]):
         flat: list[TaskMap] = []
         for p in parts:
@@ -45,8 +48,11 @@ class Stack(TaskMap):
         return tuple(f for p in self.parts for f in p.frame_refs())
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
-        for part, span in zip(self.parts, self._spans):
-            part.evaluate(cache, y[span], J[span])
+        views = self._views
+        if views is None or views[0] is not y or views[1] is not J:  # slice once per output buffer
+            views = self._views = (y, J, [(p, y[s], J[s]) for p, s in zip(self.parts, self._spans)])
+        for part, y_part, J_part in views[2]:
+            part.evaluate(cache, y_part, J_part)
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         out = np.subtract(a, b)
