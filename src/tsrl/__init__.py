@@ -6,15 +6,21 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"  # off-screen by default on machines without a display
 
 from .assets import SCENES, load_model
+from .envs import ENV_IDS, register_envs
 from .exceptions import ModelLoadError, TsrlError, UnknownName, UnknownScene
+from .ik import IKResult, solve_ik
 from .kinematics import dh_forward, forward_kinematics
 from .taskmaps import OBS_PRESETS, TaskMap, TaskMapValue, parse_spec
+
+register_envs()
 
 __version__ = "0.1.0"
 
 __all__ = (
+    "ENV_IDS",
     "OBS_PRESETS",
     "SCENES",
+    "IKResult",
     "ModelLoadError",
     "TaskMap",
     "TaskMapValue",
@@ -25,4 +31,5 @@ __all__ = (
     "forward_kinematics",
     "load_model",
     "parse_spec",
+    "solve_ik",
 )

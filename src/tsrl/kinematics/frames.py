@@ -15,12 +15,13 @@ _OBJECT_KINDS = {
     "geom": mujoco.mjtObj.mjOBJ_GEOM,
     "joint": mujoco.mjtObj.mjOBJ_JOINT,
     "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+    "key": mujoco.mjtObj.mjOBJ_KEY,
 }
-_COUNTS = {"site": "nsite", "body": "nbody", "geom": "ngeom", "joint": "njnt", "actuator": "nu"}
+_COUNTS = {"site": "nsite", "body": "nbody", "geom": "ngeom", "joint": "njnt", "actuator": "nu", "key": "nkey"}
 
 
 def names(model: mujoco.MjModel, kind: str) -> list[str]:
-    """All named objects of `kind` (site, body, geom, joint, actuator) in the model."""
+    """All named objects of `kind` (site, body, geom, joint, actuator, key) in the model."""
     obj = _OBJECT_KINDS[kind]
     found = (mujoco.mj_id2name(model, obj, i) for i in range(getattr(model, _COUNTS[kind])))
     return [n for n in found if n]

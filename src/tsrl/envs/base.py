@@ -1,0 +1,287 @@
+"""TsrlGoalEnv: the goal-conditioned MuJoCo environment shared by the UR5e reach and pick-and-place tasks.
+
+One step: action -> desired task-map values -> IK -> servo targets -> physics substeps -> the task maps
+evaluated once, their values and Jacobians reused for observation, reward and the next step's IK.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+from numpy.typing import ArrayLike
+
+from ..assets import load_model
+from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
+from ..exceptions import InvalidAction, InvalidConfig
+from ..ik import solve_ik
+from ..kinematics import arm_qpos_indices, name_to_id
+from ..taskmaps import OBS_PRESETS, TaskMapValue, parse_spec
+from .actions import ACTION_MODES, ActionConfig
+
+#: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
+_INSTABILITY_WARNINGS = tuple(
+    int(w)
+    for w in (
+        mujoco.mjtWarning.mjWARN_BADQACC,
+        mujoco.mjtWarning.mjWARN_BADQVEL,
+        mujoco.mjtWarning.mjWARN_BADQPOS,
+    )
+)
+
+
+def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
+    """A finite action of the space's shape, clipped to its bounds; NaN/inf is rejected."""
+    a = np.asarray(action, dtype=np.float64)
+    if a.shape != space.shape:
+        raise InvalidAction(f"action of shape {a.shape}; expected {space.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
+    return np.clip(a, space.low, space.high)
+
+
+class TsrlGoalEnv(gym.Env, EzPickle):
+    """Base class; subclasses set the scene, the achieved-goal map and the randomisation."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+
+    #: Built-in scene (tsrl.assets.SCENES).
+    scene: str
+    #: Task map whose value is the achieved goal (3,).
+    achieved_goal_spec: str
+    #: Whether the action has a suction dimension.
+    has_suction: bool = False
+    #: Control period [s] (25 Hz) and number of 2 ms physics substeps per control period.
+    control_dt: float = 0.04
+    #: Bounds [m] of the TCP position target: above the table and within reach.
+    workspace_low = np.array([-0.9, -0.55, 0.02])
+    workspace_high = np.array([-0.15, 0.3, 0.7])
+
+    def __init__(
+        self,
+        obs: str = "baseline",
+        action: str = "taskspace",
+        render_mode: str | None = None,
+        success_radius: float = 0.05,
+        ik_iterations: int = 5,
+        width: int = 480,
+        height: int = 480,
+    ):
+        EzPickle.__init__(self, obs, action, render_mode, success_radius, ik_iterations, width, height)
+        if action not in ACTION_MODES:
+            raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_MODES)}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InvalidConfig(
+                f"unknown render_mode {render_mode!r}; accepted: None, {', '.join(self.metadata['render_modes'])}"
+            )
+        if not success_radius > 0:
+            raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
+        if ik_iterations < 1:
+            raise InvalidConfig(f"ik_iterations must be >= 1; got {ik_iterations}")
+        self.obs_spec = OBS_PRESETS.get(obs, obs)
+        self.action_config = ActionConfig(mode=action, suction=self.has_suction)
+        self.success_radius = success_radius
+        self.ik_iterations = ik_iterations
+        self.render_mode = render_mode
+        self._render_size = (width, height)
+
+        self.model = load_model(self.scene)
+        self.data = mujoco.MjData(self.model)
+        self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
+        self.n_substeps = round(self.control_dt / self.model.opt.timestep)
+        self._arm_qpos = arm_qpos_indices(self.model)
+        self._arm_ctrl = np.array([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
+        self._suction_ctrl = (
+            name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
+        )
+        self._target_mocap = self.model.body_mocapid[name_to_id(self.model, "body", TARGET_BODY)]
+        self._home_key = name_to_id(self.model, "key", HOME_KEY)
+
+        # The observation's maps, and every map a step needs, in one stack evaluated once per step.
+        self.obs_map = parse_spec(self.obs_spec, self.model)
+        ik_spec = self.action_config.ik_spec
+        self.ik_map = parse_spec(ik_spec, self.model) if ik_spec else None
+        parts = [self.obs_spec, self.achieved_goal_spec, f"position({TARGET_SITE})"] + (
+            [ik_spec] if ik_spec else []
+        )
+        self._step_maps = parse_spec(", ".join(parts), self.model)
+        d_obs = self.obs_map.dim
+        self._achieved_rows = slice(d_obs, d_obs + 3)
+        self._desired_rows = slice(d_obs + 3, d_obs + 6)
+        self._ik_rows = slice(d_obs + 6, self._step_maps.dim)
+        self._value: TaskMapValue | None = None
+
+        self.observation_space = spaces.Dict(
+            {
+                "observation": spaces.Box(-np.inf, np.inf, (d_obs,), np.float64),
+                "achieved_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+                "desired_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+            }
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, (self.action_config.dim,), np.float32)
+        self._renderer = None
+        self._viewer = None
+
+    # -- structure -------------------------------------------------------------------------------
+    @property
+    def observation_structure(self) -> dict[str, slice]:
+        """Which slice of `observation` each feature (task-map spec) occupies."""
+        return dict(self.obs_map.slices)
+
+    # -- Gymnasium API ----------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
+        self._randomize()
+        mujoco.mj_forward(self.model, self.data)
+        self._evaluate()
+        obs = self._observation()
+        return obs, self._info(obs, ik_error=0.0)
+
+    def step(self, action: ArrayLike):
+        a = checked_action(action, self.action_space)
+        q_target, ik_error = self._joint_targets(a)
+        self.data.ctrl[self._arm_ctrl] = q_target
+        if self._suction_ctrl is not None:
+            self.data.ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
+        warnings_before = self._instability_count()
+        for _ in range(self.n_substeps):
+            mujoco.mj_step(self.model, self.data)
+        unstable = self._instability_count() > warnings_before or not (
+            np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
+        )
+        if unstable:  # MuJoCo has reset the state: end the episode with the last valid observation
+            obs = self._last_obs
+            info = self._info(obs, ik_error) | {"physics_unstable": True}
+            return obs, 0.0, False, True, info
+        self._evaluate()
+        obs = self._observation()
+        info = self._info(obs, ik_error)
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, False, False, info
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        """1 where ||achieved - desired|| < success_radius, else 0 (paper eq. 8; Gymnasium-Robotics uses 0/-1).
+
+        Reads only the goals. Vectorised: goals (3,) -> (), (B, 3) -> (B,); float32.
+        """
+        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        return (d < self.success_radius).astype(np.float32)
+
+    def relabel(self, obs: dict[str, np.ndarray], new_goal: ArrayLike) -> dict[str, np.ndarray]:
+        """The observation the environment would have emitted with the goal at `new_goal`.
+
+        Goal-dependent features (position(target), positionDiff(tcp, target), ...) are recomputed;
+        the rest is unchanged. `obs` arrays are (d,) or batched (B, d); `new_goal` (3,) or (B, 3).
+        """
+        desired = np.asarray(obs["desired_goal"], dtype=np.float64)
+        goal = np.broadcast_to(np.asarray(new_goal, dtype=np.float64), desired.shape)
+        observation = self.obs_map.translated(
+            np.asarray(obs["observation"], np.float64), TARGET_SITE, goal - desired
+        )
+        return {
+            "observation": np.asarray(observation, dtype=np.float64),
+            "achieved_goal": np.array(obs["achieved_goal"], dtype=np.float64),
+            "desired_goal": goal.copy(),
+        }
+
+    def move_target(self, goal: ArrayLike) -> dict[str, np.ndarray]:
+        """Moves the goal marker to `goal` (3,) without stepping physics; returns the new observation."""
+        self.data.mocap_pos[self._target_mocap] = np.asarray(goal, dtype=np.float64)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+        self._evaluate(kinematics=False)
+        return self._observation()
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            from ..rendering import SceneRenderer
+
+            if self._renderer is None:
+                self._renderer = SceneRenderer(self.model, *self._render_size)
+            return self._renderer.render(self.data)
+        if self.render_mode == "human":
+            if self._viewer is None:
+                if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+                    raise InvalidConfig("render_mode='human' needs a display; use render_mode='rgb_array'")
+                import mujoco.viewer
+
+                self._viewer = mujoco.viewer.launch_passive(self.model, self.data)
+            self._viewer.sync()
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+    # -- internals ---------------------------------------------------------------------------------
+    def _randomize(self) -> None:
+        """Samples the goal (and objects) with self.np_random; sets them in self.data."""
+        raise NotImplementedError
+
+    def _evaluate(self, kinematics: bool = True) -> None:
+        """Evaluates every map of the step once at the current state (after the physics substeps)."""
+        if kinematics:
+            mujoco.mj_kinematics(self.model, self.data)
+            mujoco.mj_comPos(self.model, self.data)
+        self._value = self._step_maps(self.model, self.data)
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        y = self._value.y
+        obs = {
+            "observation": y[: self.obs_map.dim].copy(),
+            "achieved_goal": y[self._achieved_rows].copy(),
+            "desired_goal": y[self._desired_rows].copy(),
+        }
+        self._last_obs = obs
+        return obs
+
+    def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
+        distance = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
+        return {
+            "is_success": distance < self.success_radius,
+            "distance": distance,
+            "ik_error": float(ik_error),
+        }
+
+    def _instability_count(self) -> int:
+        return sum(int(self.data.warning[w].number) for w in _INSTABILITY_WARNINGS)
+
+    def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
+        """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
+        cfg = self.action_config
+        q = self.data.qpos[self._arm_qpos]
+        if cfg.mode == "joint":
+            return np.clip(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]), 0.0
+        y_ik = self._value.y[self._ik_rows]
+        position = self._clip_to_workspace(y_ik[:3] + cfg.max_tcp_step * a[:3])
+        if cfg.mode == "taskspace":
+            target = np.concatenate([position, [0.0, 0.0, -1.0]])
+        else:
+            target = np.concatenate([position, a[3:6]])
+        self._ik_data.qpos[:] = self.data.qpos
+        initial = TaskMapValue(y_ik, self._value.J[self._ik_rows])
+        result = solve_ik(  # a local solve from the current pose: no restarts, a few iterations
+            self.model,
+            self._ik_data,
+            self.ik_map,
+            target,
+            initial_value=initial,
+            max_iters=self.ik_iterations,
+            restarts=0,
+        )
+        return result.q, result.error_norm
+
+    def _clip_to_workspace(self, position: np.ndarray) -> np.ndarray:
+        return np.clip(position, self.workspace_low, self.workspace_high)
