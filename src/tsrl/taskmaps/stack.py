@@ -55,7 +55,8 @@ class Stack(TaskMap):
             part.evaluate(cache, y_part, J_part)
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        out = np.subtract(a, b)
+        a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+        out = a - b
         for part, span in zip(self.parts, self._spans):
             out[..., span] = part.difference(a[..., span], b[..., span])
         return out
