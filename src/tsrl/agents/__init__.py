@@ -1,0 +1,47 @@
+"""Agents: DDPG/TD3/SAC with feature-aware HER, built by a factory; training runs, checkpoints, evaluation.
+
+The configs import fast; the rest (torch, stable-baselines3) loads on first use, so `tsrl --help`
+and `tsrl demo` stay quick.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from .config import AgentConfig, HerConfig, TrainConfig
+
+_LAZY = {
+    "ALGOS": "factory",
+    "make_agent": "factory",
+    "make_env": "factory",
+    "make_vec_env": "factory",
+    "FeatureHerReplayBuffer": "her",
+    "TrainingInterrupted": "training",
+    "load_config": "training",
+    "read_progress": "training",
+    "resume": "training",
+    "train": "training",
+}
+
+__all__ = (
+    "ALGOS",
+    "AgentConfig",
+    "FeatureHerReplayBuffer",
+    "HerConfig",
+    "TrainConfig",
+    "TrainingInterrupted",
+    "load_config",
+    "make_agent",
+    "make_env",
+    "make_vec_env",
+    "read_progress",
+    "resume",
+    "train",
+)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,92 @@
+"""make_env / make_vec_env / make_agent: DDPG, TD3 or SAC with (feature-aware) HER, built by a factory.
+
+Algorithms are stable-baselines3's own classes, never subclassed; HER enters as the replay buffer
+class. Observation normalisation is a VecNormalize wrapper (running mean and std of observation,
+achieved and desired goal; rewards untouched) whose statistics the checkpoints save.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3 import DDPG, SAC, TD3
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
+
+from ..exceptions import InvalidConfig
+from .config import AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
+from .her import FeatureHerReplayBuffer
+
+ALGOS: dict[str, type[OffPolicyAlgorithm]] = {"ddpg": DDPG, "td3": TD3, "sac": SAC}
+#: Keys normalised by VecNormalize (all of a goal environment's observation dict).
+NORM_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
+
+
+def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
+    """One environment of the run (gym.make with the run's obs and action); unknown ids list tsrl's."""
+    if cfg.is_tsrl_env:
+        check_env_id(cfg.env_id)
+    elif cfg.env_id not in gym.registry:
+        raise InvalidConfig(f"unknown environment {cfg.env_id!r}; accepted: {', '.join(tsrl_env_ids())}")
+    kwargs = dict(cfg.env_kwargs)
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
+    return gym.make(cfg.env_id, **kwargs)
+
+
+def make_vec_env(cfg: TrainConfig) -> VecEnv:
+    """The training VecEnv: one Monitor-wrapped env, inside VecNormalize when cfg.agent.normalize.
+
+    VecNormalize only scales what the networks see; the replay buffer stores raw observations.
+    """
+    venv: VecEnv = DummyVecEnv([lambda: Monitor(make_env(cfg))])
+    if cfg.agent.normalize:
+        venv = VecNormalize(
+            venv,
+            norm_obs=True,
+            norm_reward=False,
+            norm_obs_keys=list(NORM_KEYS),
+            clip_obs=cfg.agent.clip_obs,
+            gamma=cfg.agent.gamma,
+        )
+    return venv
+
+
+def buffer_capacity(cfg: TrainConfig, episode_steps: int) -> int:
+    """Transitions the buffer is allocated for: a run never stores more than its budget plus one update."""
+    return min(cfg.agent.buffer_size, cfg.total_timesteps + cfg.agent.train_freq_episodes * episode_steps)
+
+
+def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None) -> OffPolicyAlgorithm:
+    """DDPG/TD3/SAC + HER on `env` with the settings of `cfg.agent` (see AgentConfig for each default)."""
+    a: AgentConfig = cfg.agent
+    n_actions = int(np.prod(env.action_space.shape))
+    episode_steps = int(env.get_attr("spec")[0].max_episode_steps or 0)
+    if episode_steps <= 0:
+        raise InvalidConfig(f"{cfg.env_id} has no time limit; HER needs finite episodes")
+    kwargs = {
+        "learning_rate": a.learning_rate,
+        "buffer_size": buffer_capacity(cfg, episode_steps),
+        "learning_starts": a.learning_starts,
+        "batch_size": a.batch_size,
+        "tau": a.tau,
+        "gamma": a.gamma,
+        "train_freq": (a.train_freq_episodes, "episode"),
+        "gradient_steps": a.gradient_steps,
+        "replay_buffer_class": FeatureHerReplayBuffer,
+        "replay_buffer_kwargs": {
+            "n_sampled_goal": a.her.n_sampled_goal,
+            "goal_selection_strategy": a.her.strategy,
+            "relabel_features": a.her.relabel == "feature",
+        },
+        "policy_kwargs": {"net_arch": list(a.net_arch)},
+        "tensorboard_log": tensorboard_log,
+        "seed": cfg.seed,
+        "device": "cpu",
+        "verbose": 0,
+    }
+    if a.algo in ("ddpg", "td3") and a.action_noise > 0:
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
+    return ALGOS[a.algo]("MultiInputPolicy", env, **kwargs)

@@ -1,0 +1,176 @@
+"""FeatureHerReplayBuffer: HER that recomputes goal-dependent observation features when it relabels.
+
+stable-baselines3's HerReplayBuffer replaces only `desired_goal` of a relabelled transition. With
+task-space observations such as positionDiff(tcp, target) that leaves the observation describing the
+old goal while `desired_goal` names the new one. This buffer passes every relabelled observation and
+next observation through the environment's `relabel(obs, new_goal)`, vectorised over the batch, so
+a relabelled transition is exactly what the environment would have emitted with the goal there. It
+works on the raw stored values; normalisation (VecNormalize) is applied afterwards.
+
+The buffer also pickles compactly (only the filled part of its arrays), so checkpoints of a short
+run stay small, and can grow when a resumed run gets a larger budget.
+
+Pinned to stable-baselines3 2.9.2 (pyproject.toml): `_get_virtual_samples` is a private method.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3 import HerReplayBuffer
+from stable_baselines3.common.type_aliases import DictReplayBufferSamples
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+from ..exceptions import InvalidConfig
+
+#: Arrays indexed by [transition, env] that hold data (the rest is configuration).
+_DATA_ARRAYS = ("actions", "rewards", "dones", "timeouts", "infos", "ep_start", "ep_length")
+
+
+class FeatureHerReplayBuffer(HerReplayBuffer):
+    """HerReplayBuffer whose relabelled observations agree with their new goal.
+
+    Args (beyond HerReplayBuffer's):
+        relabel_features: True (default) to recompute goal-dependent features through
+            `env.relabel`; False gives stable-baselines3's plain HER (for comparisons).
+    """
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Dict,
+        action_space: spaces.Space,
+        env: VecEnv,
+        device: th.device | str = "auto",
+        n_envs: int = 1,
+        optimize_memory_usage: bool = False,
+        handle_timeout_termination: bool = True,
+        n_sampled_goal: int = 4,
+        goal_selection_strategy: str = "future",
+        copy_info_dict: bool = False,
+        relabel_features: bool = True,
+    ):
+        super().__init__(
+            buffer_size,
+            observation_space,
+            action_space,
+            env,
+            device=device,
+            n_envs=n_envs,
+            optimize_memory_usage=optimize_memory_usage,
+            handle_timeout_termination=handle_timeout_termination,
+            n_sampled_goal=n_sampled_goal,
+            goal_selection_strategy=goal_selection_strategy,
+            copy_info_dict=copy_info_dict,
+        )
+        self.relabel_features = relabel_features
+        if relabel_features and env is not None and not _has_relabel(env):
+            raise InvalidConfig(
+                "feature-aware HER needs an environment with relabel(obs, new_goal) (tsrl's environments "
+                "have it); use HER relabel mode 'plain' for other environments"
+            )
+
+    def relabel(self, obs: dict[str, np.ndarray], new_goals: np.ndarray) -> dict[str, np.ndarray]:
+        """obs (B, d) per key with desired_goal replaced by new_goals (B, 3) and features recomputed."""
+        assert self.env is not None, "call set_env() after unpickling"
+        return self.env.env_method("relabel", obs, new_goals, indices=[0])[0]
+
+    def _get_virtual_samples(
+        self,
+        batch_indices: np.ndarray,
+        env_indices: np.ndarray,
+        env: VecNormalize | None = None,
+    ) -> DictReplayBufferSamples:
+        """As HerReplayBuffer's (stable-baselines3 2.9.2), plus the feature recomputation."""
+        if not self.relabel_features:
+            return super()._get_virtual_samples(batch_indices, env_indices, env)
+        obs = {key: o[batch_indices, env_indices, :] for key, o in self.observations.items()}
+        next_obs = {key: o[batch_indices, env_indices, :] for key, o in self.next_observations.items()}
+        if self.copy_info_dict:
+            infos = copy.deepcopy(self.infos[batch_indices, env_indices])
+        else:
+            infos = [{} for _ in range(len(batch_indices))]
+        new_goals = self._sample_goals(batch_indices, env_indices)
+
+        # One vectorised call for observations and next observations: same goal for both.
+        n = len(batch_indices)
+        both = {key: np.concatenate([obs[key], next_obs[key]]) for key in obs}
+        both = self.relabel(both, np.concatenate([new_goals, new_goals]))
+        obs = {key: both[key][:n] for key in obs}
+        next_obs = {key: both[key][n:] for key in next_obs}
+
+        assert self.env is not None
+        # r_t = reward(next achieved goal, new desired goal), as in HerReplayBuffer.
+        rewards = self.env.env_method(
+            "compute_reward", next_obs["achieved_goal"], new_goals, infos, indices=[0]
+        )
+        rewards = rewards[0].astype(np.float32)
+        obs = self._normalize_obs(obs, env)  # type: ignore[assignment]
+        next_obs = self._normalize_obs(next_obs, env)  # type: ignore[assignment]
+        return DictReplayBufferSamples(
+            observations={key: self.to_torch(o) for key, o in obs.items()},
+            actions=self.to_torch(self.actions[batch_indices, env_indices]),
+            next_observations={key: self.to_torch(o) for key, o in next_obs.items()},
+            dones=self.to_torch(
+                self.dones[batch_indices, env_indices] * (1 - self.timeouts[batch_indices, env_indices])
+            ).reshape(-1, 1),
+            rewards=self.to_torch(self._normalize_reward(rewards.reshape(-1, 1), env)),
+        )
+
+    # -- compact pickling and growth ------------------------------------------------------------
+    @property
+    def n_stored(self) -> int:
+        """Rows of the arrays that hold transitions."""
+        return self.buffer_size if self.full else self.pos
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        n = self.n_stored
+        if n < self.buffer_size:  # store only the filled rows; __setstate__ pads them back
+            for name in _DATA_ARRAYS:
+                state[name] = state[name][:n]
+            for name in ("observations", "next_observations"):
+                state[name] = {key: value[:n] for key, value in state[name].items()}
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        super().__setstate__(state)
+        self._pad_to(self.buffer_size)
+
+    def grow(self, buffer_size: int) -> None:
+        """Enlarges the capacity to `buffer_size` if the buffer has not wrapped around yet."""
+        if buffer_size <= self.buffer_size or self.full:
+            return
+        self.buffer_size = buffer_size
+        self._pad_to(buffer_size)
+
+    def _pad_to(self, size: int) -> None:
+        def pad(a: np.ndarray) -> np.ndarray:
+            if len(a) >= size:
+                return a
+            out = np.zeros((size, *a.shape[1:]), dtype=a.dtype)
+            out[: len(a)] = a
+            return out
+
+        for name in _DATA_ARRAYS:
+            if name == "infos":
+                if len(self.infos) < size:
+                    extra = np.array(
+                        [[{} for _ in range(self.n_envs)] for _ in range(size - len(self.infos))]
+                    )
+                    self.infos = np.concatenate([self.infos.reshape(-1, self.n_envs), extra])
+            else:
+                setattr(self, name, pad(getattr(self, name)))
+        self.observations = {key: pad(value) for key, value in self.observations.items()}
+        self.next_observations = {key: pad(value) for key, value in self.next_observations.items()}
+
+
+def _has_relabel(env: VecEnv) -> bool:
+    try:
+        return callable(env.get_attr("relabel", indices=[0])[0])
+    except AttributeError:
+        return False
