@@ -12,6 +12,8 @@ from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS, TCP_OFFSET, UR5E_DH
 from tsrl.kinematics import dh_forward, forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
 
+from .conftest import finite_difference_jacobian, set_qpos
+
 
 def _mat2quat(R: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
@@ -212,3 +214,42 @@ def test_maps_pickle_after_use(ur5e):
     y = stack(model, data).y
     clone = pickle.loads(pickle.dumps(stack))
     np.testing.assert_array_equal(clone(model, data).y, y)
+
+
+ROTATED_SITE_XML = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="link">
+      <joint name="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+      <body name="tip" pos="0.3 0 0">
+        <joint name="twist" axis="1 0 0"/>
+        <geom type="sphere" size="0.02"/>
+        <site name="tool" pos="0.05 0 0" euler="0.3 -0.7 1.2"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_site_with_its_own_rotation(rng):
+    model = mujoco.MjModel.from_xml_string(ROTATED_SITE_XML)
+    data = mujoco.MjData(model)
+    quaternion = parse_spec("quaternion(tool), quaternion(tip)", model)
+    for q in rng.uniform(-np.pi, np.pi, size=(5, 2)):
+        set_qpos(model, data, q)
+        y, J = quaternion(model, data)
+        expected = np.zeros(4)
+        mujoco.mju_mulQuat(expected, data.xquat[model.body("tip").id], model.site_quat[model.site("tool").id])
+        np.testing.assert_allclose(y[:4], expected, atol=1e-12)
+        assert (
+            min(
+                np.abs(y[:4] - _mat2quat(data.site("tool").xmat)).max(),
+                np.abs(y[:4] + _mat2quat(data.site("tool").xmat)).max(),
+            )
+            < 1e-9
+        )
+        assert np.abs(y[:4] - y[4:]).max() > 0.1  # the site is rotated against its body
+        np.testing.assert_allclose(J, finite_difference_jacobian(quaternion, model, data), atol=1e-6)
