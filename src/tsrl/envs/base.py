@@ -19,8 +19,8 @@ from numpy.typing import ArrayLike
 from ..assets import load_model
 from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
 from ..exceptions import InvalidAction, InvalidConfig
-from ..ik import solve_ik
-from ..kinematics import arm_qpos_indices, name_to_id
+from ..ik import ik_step, solve_ik
+from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
 from ..taskmaps import OBS_PRESETS, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
 
@@ -43,6 +43,14 @@ def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
     return np.clip(a, space.low, space.high)
+
+
+#: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
+_INSTABILITY_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+)
 
 
 class TsrlGoalEnv(gym.Env, EzPickle):
@@ -68,7 +76,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         action: str = "taskspace",
         render_mode: str | None = None,
         success_radius: float = 0.05,
-        ik_iterations: int = 5,
+        ik_iterations: int = 1,
         width: int = 480,
         height: int = 480,
     ):
@@ -95,6 +103,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(self.control_dt / self.model.opt.timestep)
         self._arm_qpos = arm_qpos_indices(self.model)
+        self._arm_dofs = arm_dof_indices(self.model)
         self._arm_ctrl = np.array([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
         self._suction_ctrl = (
             name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
@@ -115,6 +124,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self._desired_rows = slice(d_obs + 3, d_obs + 6)
         self._ik_rows = slice(d_obs + 6, self._step_maps.dim)
         self._value: TaskMapValue | None = None
+        # Live views of the warning counters that mean the physics blew up.
+        self._instability_warnings = [self.data.warning[int(w)] for w in _INSTABILITY_WARNINGS]
 
         self.observation_space = spaces.Dict(
             {
@@ -152,10 +163,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         warnings_before = self._instability_count()
         for _ in range(self.n_substeps):
             mujoco.mj_step(self.model, self.data)
-        unstable = self._instability_count() > warnings_before or not (
-            np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
-        )
-        if unstable:  # MuJoCo has reset the state: end the episode with the last valid observation
+        # MuJoCo warns and resets the state when a non-finite or huge qpos/qvel/qacc appears.
+        if self._instability_count() > warnings_before:
             obs = self._last_obs
             info = self._info(obs, ik_error) | {"physics_unstable": True}
             return obs, 0.0, False, True, info
@@ -256,7 +265,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         }
 
     def _instability_count(self) -> int:
-        return sum(int(self.data.warning[w].number) for w in _INSTABILITY_WARNINGS)
+        return sum(w.number for w in self._instability_warnings)
 
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
@@ -270,9 +279,13 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             target = np.concatenate([position, [0.0, 0.0, -1.0]])
         else:
             target = np.concatenate([position, a[3:6]])
-        self._ik_data.qpos[:] = self.data.qpos
         initial = TaskMapValue(y_ik, self._value.J[self._ik_rows])
-        result = solve_ik(  # a local solve from the current pose: no restarts, a few iterations
+        if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
+            q_target = ik_step(self.model, self.data, self.ik_map, target, initial_value=initial)
+            residual = self.ik_map.difference(target, y_ik) - initial.J[:, self._arm_dofs] @ (q_target - q)
+            return q_target, float(np.linalg.norm(residual))
+        self._ik_data.qpos[:] = self.data.qpos
+        result = solve_ik(  # a local solve from the current pose: no restarts
             self.model,
             self._ik_data,
             self.ik_map,

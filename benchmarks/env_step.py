@@ -1,0 +1,105 @@
+"""Environment step speed: tsrl/UR5eReach-v0 (fs2, taskspace) against Gymnasium-Robotics FetchReach-v4.
+
+Both run random actions, measured alternately in one process (rounds of whole episodes), and our step is
+broken down into physics (the 20 mj_step substeps), task maps (one evaluation of every map the step
+needs), IK and the rest (action checks, observation dicts, reward, Python overhead).
+
+    python benchmarks/env_step.py [--rounds 5] [--episodes 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from fetch_compat import register_fetch_envs
+
+import tsrl  # noqa: F401  (registers tsrl/UR5eReach-v0)
+
+
+def steps_per_second(env: gym.Env, episodes: int, seed: int) -> float:
+    env.action_space.seed(seed)
+    steps, elapsed = 0, 0.0
+    for e in range(episodes):
+        env.reset(seed=seed + e)
+        truncated = terminated = False
+        while not (truncated or terminated):
+            action = env.action_space.sample()
+            t0 = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step(action)
+            elapsed += time.perf_counter() - t0
+            steps += 1
+    return steps / elapsed
+
+
+def breakdown(env: gym.Env, steps: int, seed: int) -> dict[str, float]:
+    """Microseconds per step of each part of our step, each timed on the state the step sees."""
+    u = env.unwrapped
+    scratch = mujoco.MjData(u.model)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    parts = {"whole step": [], "physics": [], "task maps": [], "IK": []}
+    for _ in range(steps):
+        action = env.action_space.sample()
+        a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        t0 = time.perf_counter()
+        u._joint_targets(a)
+        parts["IK"].append(time.perf_counter() - t0)
+        mujoco.mj_copyData(scratch, u.model, u.data)
+        t0 = time.perf_counter()
+        for _ in range(u.n_substeps):
+            mujoco.mj_step(u.model, scratch)
+        parts["physics"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        u._step_maps(u.model, u.data)
+        parts["task maps"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        _, _, _, truncated, _ = env.step(action)
+        parts["whole step"].append(time.perf_counter() - t0)
+        if truncated:
+            env.reset()
+    us = {k: 1e6 * statistics.median(v) for k, v in parts.items()}
+    us["rest"] = us["whole step"] - us["physics"] - us["task maps"] - us["IK"]
+    return us
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds")
+    parser.add_argument("--episodes", type=int, default=10, help="50-step episodes per env per round")
+    args = parser.parse_args()
+
+    register_fetch_envs()
+    ours = gym.make("tsrl/UR5eReach-v0", obs="fs2", action="taskspace")
+    fetch = gym.make("FetchReach-v4")
+    rates: dict[str, list[float]] = {"tsrl/UR5eReach-v0 (fs2, taskspace)": [], "FetchReach-v4": []}
+    for r in range(args.rounds):
+        rates["tsrl/UR5eReach-v0 (fs2, taskspace)"].append(steps_per_second(ours, args.episodes, 100 * r))
+        rates["FetchReach-v4"].append(steps_per_second(fetch, args.episodes, 100 * r))
+    ours_rate, fetch_rate = (statistics.median(v) for v in rates.values())
+
+    print(
+        f"\nSteps per second, random actions, median of {args.rounds} alternating rounds "
+        f"of {args.episodes} episodes:\n"
+    )
+    print("| environment | steps/s |")
+    print("| --- | ---: |")
+    for name, v in rates.items():
+        print(f"| {name} | {statistics.median(v):,.0f} |")
+    print(f"\nratio tsrl / FetchReach-v4: {ours_rate / fetch_rate:.2f}x (target >= 4x)\n")
+
+    us = breakdown(ours, steps=args.episodes * 50, seed=7)
+    print("Breakdown of one tsrl/UR5eReach-v0 step (median microseconds):\n")
+    print("| part | us | share of step |")
+    print("| --- | ---: | ---: |")
+    for k in ("physics", "task maps", "IK", "rest", "whole step"):
+        print(f"| {k} | {us[k]:.1f} | {us[k] / us['whole step']:.0%} |")
+    print(f"\nwhole step / physics alone: {us['whole step'] / us['physics']:.2f}x (target <= 2x)")
+
+
+if __name__ == "__main__":
+    main()
