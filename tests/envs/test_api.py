@@ -8,7 +8,7 @@ import pytest
 import stable_baselines3.common.env_checker as sb3_checker
 from gymnasium.utils.env_checker import check_env
 
-import tsrl  # noqa: F401  (registers the environments)
+import tsrl  # registers the environments
 from tsrl.envs import ENV_IDS
 
 
@@ -93,3 +93,20 @@ def test_model_and_data_are_exposed():
     env.reset(seed=0)
     assert env.model.nq == 6 and env.data.qpos.shape == (6,)
     assert env.n_substeps == 20 and env.model.opt.timestep == 0.002
+
+
+def test_rgb_array_rendering_shows_the_scene():
+    env = gym.make("tsrl/UR5ePickPlace-v0", render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    image = env.render()
+    env.close()
+    assert image.shape == (120, 160, 3) and image.std() > 10
+
+
+def test_human_rendering_without_a_display_says_so(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    env = gym.make("tsrl/UR5eReach-v0", render_mode="human").unwrapped
+    env.reset(seed=0)
+    with pytest.raises(tsrl.exceptions.InvalidConfig, match="needs a display"):
+        env.render()
