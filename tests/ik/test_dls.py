@@ -1,0 +1,334 @@
+"""solve_ik, ik_step and dls_step on the real UR5e: known solutions, behaviour, limits, bad input."""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+import mujoco
+import numpy as np
+import pytest
+
+from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS
+from tsrl.exceptions import InvalidConfig, UnknownName
+from tsrl.ik import IKResult, dls_step, ik_step, solve_ik
+from tsrl.kinematics import forward_kinematics, random_configurations
+from tsrl.taskmaps import parse_spec
+
+from .conftest import ALIGNMENT, POSE, Recording, target_at, within_limits
+
+
+def quaternion_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Rotation angle [rad] between unit quaternions a and b (either sign)."""
+    return float(2.0 * np.arccos(min(1.0, abs(a @ b))))
+
+
+# dls_step: the formula itself
+
+
+@pytest.mark.parametrize("k", [3, 6, 7])
+def test_dls_step_is_the_damped_least_squares_formula(k, rng):
+    J, e, lam = rng.normal(size=(k, 6)), rng.normal(size=k), 1e-2
+    J0, e0 = J.copy(), e.copy()
+    expected = J.T @ np.linalg.solve(J @ J.T + lam * np.eye(k), e)
+    np.testing.assert_allclose(dls_step(J, e, lam), expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(J, J0)  # pure
+    np.testing.assert_array_equal(e, e0)
+
+
+def test_dls_step_null_space_term_is_the_projected_posture_step(rng):
+    J, e, d, lam = rng.normal(size=(3, 6)), rng.normal(size=3), rng.normal(size=6), 1e-3
+    pinv = J.T @ np.linalg.inv(J @ J.T + lam * np.eye(3))
+    expected = pinv @ e + (np.eye(6) - pinv @ J) @ d
+    np.testing.assert_allclose(dls_step(J, e, lam, d), expected, rtol=1e-9, atol=1e-12)
+
+
+# Known solutions
+
+
+def test_recovers_known_positions(ur5e, rng):
+    model, data = ur5e
+    task_map = parse_spec("position(tcp)", model)
+    for q in random_configurations(rng, 10):
+        target = target_at(model, task_map, q)
+        forward_kinematics(model, data, HOME_Q)
+        result = solve_ik(model, data, task_map, target)
+        assert isinstance(result, IKResult) and result.converged
+        assert result.error_norm < 1e-4 and len(result.error_history) == result.iterations + 1
+        np.testing.assert_allclose(target_at(model, task_map, result.q), target, atol=1e-4)
+
+
+def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
+    """Targets anywhere in the joint range, any IK branch: the restarts find one."""
+    model, data = ur5e
+    for q in random_configurations(rng, 30):
+        target = target_at(model, pose_map, q)
+        forward_kinematics(model, data, HOME_Q)
+        result = solve_ik(model, data, pose_map, target, tol=5e-5)
+        assert result.converged, f"target from q = {q}"
+        y = target_at(model, pose_map, result.q)
+        assert np.linalg.norm(y[:3] - target[:3]) <= 1e-4
+        assert quaternion_angle(y[3:], target[3:]) <= 1e-4
+
+
+def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, rng):
+    model, data = ur5e
+    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    result = solve_ik(model, data, pose_map, target)
+    np.testing.assert_array_equal(data.qpos[:6], result.q)
+    np.testing.assert_allclose(pose_map(model, data).y, target_at(model, pose_map, result.q), atol=1e-12)
+
+
+def test_is_deterministic(ur5e, pose_map, rng):
+    model, data = ur5e
+    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    first = solve_ik(model, data, pose_map, target)
+    forward_kinematics(model, data, HOME_Q)
+    second = solve_ik(model, data, pose_map, target)
+    np.testing.assert_array_equal(first.q, second.q)
+    assert first.error_history == second.error_history
+
+
+# Behaviour
+
+
+def test_error_decreases_monotonically_on_easy_targets(ur5e, pose_map, rng):
+    model, data = ur5e
+    for _ in range(10):
+        target = target_at(model, pose_map, HOME_Q + rng.uniform(-0.1, 0.1, 6))
+        forward_kinematics(model, data, HOME_Q)
+        result = solve_ik(model, data, pose_map, target)
+        errors = result.error_history
+        assert result.converged and result.iterations <= 5
+        assert all(b < a for a, b in pairwise(errors))
+
+
+@pytest.mark.parametrize("restarts", [0, 3])
+def test_unreachable_target_reports_failure_within_limits(ur5e, restarts):
+    model, data = ur5e
+    task_map = parse_spec("position(tcp)", model)
+    result = solve_ik(model, data, task_map, np.array([5.0, 0.0, 0.0]), restarts=restarts)
+    assert not result.converged
+    assert np.all(np.isfinite(result.q)) and within_limits(model, result.q)
+    assert np.isfinite(result.error_norm) and 3.9 < result.error_norm < 5.0  # the arm reaches ~1 m
+    assert np.all(np.isfinite(result.error_history))
+
+
+@pytest.mark.parametrize(
+    "start",
+    [np.zeros(6), np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0, 0.0])],
+    ids=["stretched arm (q = 0)", "wrist singularity (wrist_2 = 0)"],
+)
+@pytest.mark.parametrize("restarts", [0, 30])
+def test_singular_start_does_not_blow_up(ur5e, pose_map, start, restarts):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q + 0.2)
+    forward_kinematics(model, data, start)
+    result = solve_ik(model, data, pose_map, target, restarts=restarts)
+    assert np.all(np.isfinite(result.q)) and within_limits(model, result.q)
+    assert np.all(np.isfinite(result.error_history))
+    assert result.converged
+
+
+def test_singular_target_is_reached(ur5e, pose_map):
+    """A pose whose only solutions are singular (arm stretched) still converges, more slowly."""
+    model, data = ur5e
+    target = target_at(model, pose_map, np.array([0.3, -0.4, 0.0, 0.5, 0.6, 0.7]))
+    result = solve_ik(model, data, pose_map, target, tol=1e-4)
+    assert result.converged
+
+
+def test_stacked_position_and_alignment_targets_are_met(ur5e, rng):
+    """The paper's action: TCP position plus x.x, y.y, z.z of the world and TCP axes."""
+    model, data = ur5e
+    task_map = parse_spec(ALIGNMENT, model)
+    assert task_map.dim == 6
+    for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(rng, 5)]):
+        target = target_at(model, task_map, q)
+        forward_kinematics(model, data, HOME_Q)
+        result = solve_ik(model, data, task_map, target)
+        assert result.converged, f"target from q = {q}"
+        np.testing.assert_allclose(target_at(model, task_map, result.q), target, atol=1e-4)
+
+
+def test_cup_pointing_down_is_held_across_the_reach_box(ur5e, rng):
+    """The taskspace action: a TCP position with the cup pointing down (z_tcp . z_world = -1)."""
+    model, data = ur5e
+    task_map = parse_spec("position(tcp), scalarProductZZ(world, tcp)", model)
+    home_tcp = target_at(model, task_map, HOME_Q)[:3]
+    for offset in rng.uniform(-0.15, 0.15, (10, 3)):
+        target = np.append(home_tcp + offset, -1.0)
+        result = solve_ik(model, data, task_map, target)
+        assert result.converged
+
+
+def test_weights_scale_rows_and_zero_drops_them(ur5e, pose_map, rng):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q + 0.3)
+    target[3:] = [0.0, 1.0, 0.0, 0.0]  # an orientation we do not care about
+    weights = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    result = solve_ik(model, data, pose_map, target, weights=weights)
+    assert result.converged
+    np.testing.assert_allclose(target_at(model, pose_map, result.q)[:3], target[:3], atol=1e-4)
+
+
+def test_posture_pulls_within_the_null_space(ur5e):
+    model, data = ur5e
+    task_map = parse_spec("position(tcp)", model)
+    target = target_at(model, task_map, HOME_Q + 0.1)
+    posture = HOME_Q + np.array([0.0, 0.0, 0.0, 0.5, 0.5, 0.5])
+    plain = solve_ik(model, data, task_map, target, tol=1e-6)
+    forward_kinematics(model, data, HOME_Q)
+    pulled = solve_ik(model, data, task_map, target, tol=1e-6, posture=posture, posture_gain=0.5)
+    assert plain.converged and pulled.converged
+    assert np.linalg.norm(pulled.q - posture) < np.linalg.norm(plain.q - posture) - 0.1
+
+
+# Joint limits and other coordinates
+
+
+def test_joint_limits_hold_on_every_iterate(ur5e, rng):
+    """Targets beyond the limits (jointState) and global pose targets: no iterate leaves the range."""
+    model, data = ur5e
+    recorder = Recording(parse_spec("jointState", model))
+    beyond = np.array([8.0, -8.0, 4.0, 7.0, -7.0, 9.0])
+    result = solve_ik(model, data, recorder, beyond, restarts=0)
+    np.testing.assert_allclose(result.q, np.clip(beyond, *JOINT_LIMITS.T))
+    pose = Recording(parse_spec(POSE, model))
+    for q in random_configurations(rng, 5):
+        forward_kinematics(model, data, HOME_Q)
+        solve_ik(model, data, pose, target_at(model, pose.inner, q))
+    assert len(recorder.qpos) > 1 and len(pose.qpos) > 20
+    assert all(within_limits(model, qpos[:6]) for qpos in recorder.qpos + pose.qpos)
+
+
+def test_start_outside_the_limits_is_clipped(ur5e, pose_map):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q)
+    data.qpos[:6] = HOME_Q + np.array([7.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    result = solve_ik(model, data, pose_map, target)
+    assert result.converged and within_limits(model, result.q)
+
+
+def test_free_box_in_pick_place_never_moves(pick_place_model, rng):
+    model = pick_place_model
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    box = model.joint("box")
+    box_qpos = slice(box.qposadr[0], box.qposadr[0] + 7)
+    data.qpos[box_qpos] = [-0.4, 0.2, 0.3, 0.9, 0.1, 0.3, 0.2]  # an odd, unnormalised pose
+    before = data.qpos[box_qpos].copy()
+    task_map = Recording(parse_spec(POSE, model))
+    for q in random_configurations(rng, 5):
+        result = solve_ik(model, data, task_map, target_at(model, task_map.inner, q))
+        assert result.converged and result.q.shape == (6,)
+    np.testing.assert_array_equal(data.qpos[box_qpos], before)
+    assert all(np.array_equal(qpos[box_qpos], before) for qpos in task_map.qpos)
+
+
+def test_moves_only_the_named_joints(ur5e):
+    model, data = ur5e
+    task_map = parse_spec("position(tcp)", model)
+    target = target_at(model, task_map, HOME_Q + np.array([0.0, 0.2, -0.3, 0.0, 0.0, 0.0]))
+    joints = ("shoulder_lift", "elbow", "wrist_1")
+    result = solve_ik(model, data, task_map, target, joints=joints)
+    assert result.converged and result.q.shape == (3,)
+    np.testing.assert_array_equal(data.qpos[[0, 4, 5]], HOME_Q[[0, 4, 5]])
+
+
+# A precomputed value and the single step
+
+
+def test_initial_value_skips_the_first_evaluation(ur5e, pose_map):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q + 0.05)
+    recorder = Recording(pose_map)
+    plain = solve_ik(model, data, recorder, target)
+    evaluations = len(recorder.qpos)
+    forward_kinematics(model, data, HOME_Q)
+    value = pose_map(model, data)
+    reused = solve_ik(model, data, recorder, target, initial_value=value)
+    assert len(recorder.qpos) - evaluations == evaluations - 1
+    np.testing.assert_array_equal(plain.q, reused.q)
+    assert plain.error_history == reused.error_history
+
+
+def test_initial_value_at_the_target_leaves_data_alone(ur5e, pose_map):
+    model, data = ur5e
+    value = pose_map(model, data)
+    qpos, xpos = data.qpos.copy(), data.xpos.copy()
+    result = solve_ik(model, data, pose_map, value.y, initial_value=value)
+    assert result.converged and result.iterations == 0
+    np.testing.assert_array_equal(data.qpos, qpos)
+    np.testing.assert_array_equal(data.xpos, xpos)
+
+
+def test_ik_step_is_one_paper_step_and_leaves_data_alone(ur5e, pose_map):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q + 0.05)
+    qpos = data.qpos.copy()
+    q_next = ik_step(model, data, pose_map, target, damping=1e-3, adaptive_damping=0.0)
+    np.testing.assert_array_equal(data.qpos, qpos)
+    value = pose_map(model, data)
+    expected = HOME_Q + dls_step(value.J, pose_map.difference(target, value.y), 1e-3)
+    np.testing.assert_allclose(q_next, expected, atol=1e-12)
+    reused = ik_step(model, data, pose_map, target, damping=1e-3, adaptive_damping=0.0, initial_value=value)
+    np.testing.assert_array_equal(reused, q_next)
+    # The step brings the pose closer, and is bounded and clipped.
+    before = np.linalg.norm(pose_map.difference(target, value.y))
+    after = np.linalg.norm(pose_map.difference(target, target_at(model, pose_map, q_next)))
+    assert after < 0.1 * before
+    far = ik_step(model, data, pose_map, target_at(model, pose_map, -HOME_Q), max_step=0.1)
+    assert np.linalg.norm(far - HOME_Q) <= 0.1 + 1e-12
+
+
+# Bad input
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"target": np.zeros(3)}, r"target has shape \(3,\); expected \(7,\)"),
+        ({"target": np.full(7, np.nan)}, "target must be finite"),
+        ({"tol": 0.0}, "tol must be > 0; got 0.0"),
+        ({"tol": float("nan")}, "tol must be > 0; got nan"),
+        ({"max_iters": 0}, "max_iters must be an integer >= 1; got 0"),
+        ({"max_iters": 2.5}, "max_iters must be an integer >= 1; got 2.5"),
+        ({"restarts": -1}, "restarts must be an integer >= 0; got -1"),
+        ({"damping": -1e-3}, "damping must be > 0; got -0.001"),
+        ({"adaptive_damping": -1.0}, "adaptive_damping must be >= 0; got -1.0"),
+        ({"max_step": 0}, "max_step must be > 0; got 0"),
+        ({"weights": np.ones(3)}, r"weights has shape \(3,\); expected \(7,\)"),
+        ({"weights": -np.ones(7)}, "weights must be >= 0"),
+        ({"posture": np.zeros(7)}, r"posture has shape \(7,\); expected \(6,\)"),
+        ({"posture_gain": -0.1}, "posture_gain must be >= 0; got -0.1"),
+        ({"joints": ("box",)}, "unknown joint 'box'"),
+        ({"joints": ("elbow", "elbow")}, "joints must be distinct joint names"),
+    ],
+)
+def test_bad_input_raises_a_clear_error(ur5e, pose_map, kwargs, match):
+    model, data = ur5e
+    kwargs = {"target": target_at(model, pose_map, HOME_Q), **kwargs}
+    error = UnknownName if "joints" in kwargs and "box" in kwargs["joints"] else InvalidConfig
+    with pytest.raises(error, match=match):
+        solve_ik(model, data, pose_map, **kwargs)
+
+
+def test_a_free_joint_cannot_be_moved(pick_place_model):
+    data = mujoco.MjData(pick_place_model)
+    task_map = parse_spec("position(tcp)", pick_place_model)
+    with pytest.raises(InvalidConfig, match="joint 'box' is not a hinge or slide joint"):
+        solve_ik(pick_place_model, data, task_map, np.zeros(3), joints=("box",))
+
+
+def test_bad_initial_value_and_state_are_rejected(ur5e, pose_map):
+    model, data = ur5e
+    target = target_at(model, pose_map, HOME_Q)
+    value = parse_spec("position(tcp)", model)(model, data)
+    with pytest.raises(InvalidConfig, match=r"initial_value has y \(3,\)"):
+        solve_ik(model, data, pose_map, target + 0.1, initial_value=value)
+    data.qpos[2] = np.nan
+    with pytest.raises(InvalidConfig, match="non-finite joint positions"):
+        solve_ik(model, data, pose_map, target)
+    with pytest.raises(InvalidConfig, match="non-finite joint positions"):
+        ik_step(model, data, pose_map, target)
