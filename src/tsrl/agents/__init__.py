@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .config import AgentConfig, HerConfig, TrainConfig
+from .config import AgentConfig, HerConfig, NotARunFolder, TrainConfig, load_config
 
 _LAZY = {
     "ALGOS": "factory",
@@ -18,7 +18,6 @@ _LAZY = {
     "make_vec_env": "factory",
     "FeatureHerReplayBuffer": "her",
     "TrainingInterrupted": "training",
-    "load_config": "training",
     "read_progress": "training",
     "resume": "training",
     "train": "training",
@@ -29,6 +28,7 @@ __all__ = (
     "AgentConfig",
     "FeatureHerReplayBuffer",
     "HerConfig",
+    "NotARunFolder",
     "TrainConfig",
     "TrainingInterrupted",
     "load_config",

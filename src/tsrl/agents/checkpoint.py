@@ -111,7 +111,9 @@ def load_checkpoint(
 
 def load_policy(checkpoint: Path, algo_class: type[OffPolicyAlgorithm]) -> tuple[Any, VecNormalize | None]:
     """Model (without env or replay buffer) and normaliser of a checkpoint, for evaluation and rendering."""
-    model = algo_class.load(checkpoint / MODEL, device="cpu")
+    # No env and a token replay buffer: HER's buffer needs an env, and evaluation needs no buffer.
+    no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
+    model = algo_class.load(checkpoint / MODEL, device="cpu", custom_objects=no_buffer)
     normalizer = None
     if (checkpoint / NORMALIZER).is_file():
         with open(checkpoint / NORMALIZER, "rb") as f:

@@ -9,11 +9,16 @@ reason next to each (docs/training.md has the full table).
 from __future__ import annotations
 
 import dataclasses
+import json
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
-from ..exceptions import InvalidConfig
+from ..exceptions import InvalidConfig, TsrlError
+
+#: A run folder's config file: the exact, validated TrainConfig as JSON.
+CONFIG_FILE = "config.json"
 
 ALGOS: tuple[str, ...] = ("ddpg", "td3", "sac")
 HER_RELABEL: tuple[str, ...] = ("feature", "plain")
@@ -235,3 +240,25 @@ def from_dict(cls: type, data: dict[str, Any]) -> Any:
             value = tuple(value)
         kwargs[name] = value
     return cls(**kwargs)
+
+
+class NotARunFolder(TsrlError):
+    def __init__(self, path: Path, why: str):
+        super().__init__(
+            f"{path} is not a run folder ({why}); a run folder holds {CONFIG_FILE} written by `tsrl train`"
+        )
+
+
+def load_config(run_dir: Path | str) -> TrainConfig:
+    """The TrainConfig of a run folder (validated)."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise NotARunFolder(run_dir, "no such folder")
+    path = run_dir / CONFIG_FILE
+    if not path.is_file():
+        raise NotARunFolder(run_dir, f"no {CONFIG_FILE}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
+    return from_dict(TrainConfig, data)

@@ -7,6 +7,8 @@ achieved and desired goal; rewards untouched) whose statistics the checkpoints s
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 from stable_baselines3 import DDPG, SAC, TD3
@@ -24,13 +26,16 @@ ALGOS: dict[str, type[OffPolicyAlgorithm]] = {"ddpg": DDPG, "td3": TD3, "sac": S
 NORM_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 
 
-def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
-    """One environment of the run (gym.make with the run's obs and action); unknown ids list tsrl's."""
+def make_env(cfg: TrainConfig, render_mode: str | None = None, **kwargs: Any) -> gym.Env:
+    """One environment of the run (gym.make with the run's obs and action, plus `kwargs`).
+
+    An unknown id is an error listing tsrl's environments.
+    """
     if cfg.is_tsrl_env:
         check_env_id(cfg.env_id)
     elif cfg.env_id not in gym.registry:
         raise InvalidConfig(f"unknown environment {cfg.env_id!r}; accepted: {', '.join(tsrl_env_ids())}")
-    kwargs = dict(cfg.env_kwargs)
+    kwargs = cfg.env_kwargs | kwargs
     if render_mode is not None:
         kwargs["render_mode"] = render_mode
     return gym.make(cfg.env_id, **kwargs)

@@ -33,13 +33,13 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from ..exceptions import InvalidConfig, TsrlError
+from ..exceptions import InvalidConfig
 from .checkpoint import RunState, latest_checkpoint, load_checkpoint, save_checkpoint
-from .config import TrainConfig, from_dict
+from .config import CONFIG_FILE, TrainConfig, from_dict, load_config
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGOS, buffer_capacity, make_agent, make_vec_env
 
-CONFIG = "config.json"
+CONFIG = CONFIG_FILE
 PROGRESS = "progress.csv"
 TENSORBOARD = "tb"
 LEARNING_CURVE = "learning_curve.png"
@@ -67,27 +67,6 @@ class TrainingInterrupted(Exception):
             f"{name}: stopped at {env_steps} env steps, checkpoint saved; "
             f"continue with: tsrl train --resume {run_dir}"
         )
-
-
-class NotARunFolder(TsrlError):
-    def __init__(self, path: Path, why: str):
-        super().__init__(
-            f"{path} is not a run folder ({why}); a run folder holds {CONFIG} written by `tsrl train`"
-        )
-
-
-def load_config(run_dir: Path) -> TrainConfig:
-    """The TrainConfig of a run folder (validated)."""
-    path = Path(run_dir) / CONFIG
-    if not Path(run_dir).is_dir():
-        raise NotARunFolder(Path(run_dir), "no such folder")
-    if not path.is_file():
-        raise NotARunFolder(Path(run_dir), f"no {CONFIG}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise NotARunFolder(Path(run_dir), f"{CONFIG} is not valid JSON: {err}") from None
-    return from_dict(TrainConfig, data)
 
 
 def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> Path:
@@ -310,7 +289,7 @@ def _train_success(model: OffPolicyAlgorithm) -> float:
 
 
 def _fmt(value: float | None) -> str:
-    return "" if value is None or not math.isfinite(float(value)) else f"{float(value):.6g}"
+    return "" if value is None or not math.isfinite(float(value)) else f"{float(value):.10g}"
 
 
 def _to_float(value: str | None) -> float:

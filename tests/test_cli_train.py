@@ -1,0 +1,186 @@
+"""`tsrl train / evaluate / render` as subprocesses: run folders, kill-and-resume, bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+#: Seconds-long training: 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
+TINY = [
+    "--total-timesteps", "300", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
+    "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress",
+]  # fmt: skip
+RUN_NAME = "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0"
+
+
+def tsrl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "tsrl.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
+
+
+def spawn(*args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "tsrl.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def steps_column(run_dir: Path) -> list[tuple[int, int]]:
+    with open(run_dir / "progress.csv", newline="") as f:
+        return [(int(r["env_steps"]), int(r["episodes"])) for r in csv.DictReader(f)]
+
+
+def wait_for(predicate, proc: subprocess.Popen, timeout: float = 90) -> None:
+    end = time.monotonic() + timeout
+    while not predicate():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.05)
+
+
+def checkpoint_steps(run_dir: Path) -> list[int]:
+    root = run_dir / "checkpoints"
+    return [int(p.name[5:]) for p in root.glob("step_*")] if root.is_dir() else []
+
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("runs")
+    result = tsrl(
+        "train", "--env", "tsrl/UR5eReach-v0", "--obs", "fs1", "--action", "taskspace", "--algo", "ddpg",
+        "--seed", "0", "--out-dir", str(out), *TINY,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    return out / RUN_NAME
+
+
+def test_train_writes_a_self_describing_run_folder(trained_run):
+    config = json.loads((trained_run / "config.json").read_text())
+    assert (
+        config["env_id"] == "tsrl/UR5eReach-v0"
+        and config["obs"] == "fs1"
+        and config["agent"]["algo"] == "ddpg"
+    )
+    assert config["total_timesteps"] == 300 and config["agent"]["her"]["relabel"] == "feature"
+    assert steps_column(trained_run) == [(0, 0), (100, 2), (200, 4), (300, 6)]
+    with open(trained_run / "progress.csv", newline="") as f:
+        assert {"env_steps", "episodes", "wall_time_s", "eval_success_rate"} <= set(
+            csv.DictReader(f).fieldnames
+        )
+    assert list((trained_run / "tb").glob("events.out.tfevents*"))
+    assert checkpoint_steps(trained_run) == [300]
+    assert (trained_run / "learning_curve.png").is_file()
+
+
+def test_evaluate_prints_success_rate_and_final_distance(trained_run):
+    result = tsrl("evaluate", str(trained_run), "--episodes", "3")
+    assert result.returncode == 0, result.stderr
+    assert "success rate" in result.stdout and "mean final distance" in result.stdout
+    assert "3 episodes" in result.stdout
+
+
+def test_render_writes_a_video(trained_run, tmp_path):
+    result = tsrl(
+        "render",
+        str(trained_run),
+        "--out",
+        str(tmp_path / "policy.mp4"),
+        "--episodes",
+        "1",
+        "--size",
+        "160",
+        "120",
+    )
+    assert result.returncode == 0, result.stderr
+    written = Path(result.stdout.split("wrote ")[-1].strip())
+    assert written.parent == tmp_path and written.suffix in (".mp4", ".gif")
+    assert written.stat().st_size > 2_000
+    if written.suffix == ".mp4":
+        import imageio_ffmpeg
+
+        reader = imageio_ffmpeg.read_frames(str(written))
+        meta = next(reader)
+        assert tuple(meta["size"]) == (160, 120)
+        assert sum(1 for _ in reader) == 51  # reset + 50 steps
+
+
+def test_sigkill_then_resume_continues_counters_without_duplicate_rows(tmp_path):
+    proc = spawn("train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "2000")
+    run_dir = tmp_path / RUN_NAME
+    wait_for(lambda: any(s >= 200 for s in checkpoint_steps(run_dir)), proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate()
+    killed_at = max(checkpoint_steps(run_dir))
+    result = tsrl("train", "--resume", str(run_dir), "--total-timesteps", "500")
+    assert result.returncode == 0, result.stderr
+    assert steps_column(run_dir) == [(s, s // 50) for s in range(0, 501, 100)]  # each row once, none lost
+    assert checkpoint_steps(run_dir) == [500]
+    state = json.loads((run_dir / "checkpoints" / "step_0000000500" / "state.json").read_text())
+    assert (state["env_steps"], state["episodes"]) == (500, 10)
+    assert killed_at >= 200
+    assert json.loads((run_dir / "config.json").read_text())["total_timesteps"] == 500
+
+
+def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
+    proc = spawn(
+        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "2000", "--checkpoint-freq", "5000"
+    )
+    run_dir = tmp_path / RUN_NAME
+    wait_for(lambda: (run_dir / "progress.csv").is_file() and len(steps_column(run_dir)) >= 2, proc)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, stderr
+    assert "checkpoint saved" in stderr and "--resume" in stderr and "Traceback" not in stderr
+    (stopped_at,) = checkpoint_steps(run_dir)  # the signal's checkpoint, not a periodic one
+    assert stopped_at >= 100 and stopped_at % 100 == 0
+    result = tsrl("train", "--resume", str(run_dir), "--total-timesteps", str(stopped_at + 100))
+    assert result.returncode == 0, result.stderr
+    assert steps_column(run_dir) == [(s, s // 50) for s in range(0, stopped_at + 101, 100)]
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["train", "--env", "tsrl/Kitchen-v0"], "tsrl/UR5eReach-v0"),
+        (["train", "--obs", "fs9", "--total-timesteps", "100"], "fs1"),
+        (["train", "--algo", "ppo"], "ddpg"),
+        (["train", "--action", "fly"], "taskspace"),
+        (["train", "--total-timesteps", "0"], "total_timesteps must be > 0"),
+        (["train", "--her", "magic"], "feature"),
+        (["train", "--resume", "."], "not a run folder"),
+        (["evaluate", "no/such/run"], "not a run folder"),
+        (["render", "."], "not a run folder"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
+    result = (
+        tsrl(*args, "--out-dir", str(tmp_path))
+        if args[0] == "train" and "--resume" not in args
+        else tsrl(*args)
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert not any(tmp_path.iterdir())  # no half-made run folder
+
+
+def test_help_lists_the_training_commands():
+    result = tsrl("--help")
+    assert result.returncode == 0
+    for command in ("train", "evaluate", "render", "demo"):
+        assert command in result.stdout
+    assert "--her-strategy" in tsrl("train", "--help").stdout
+    assert os.environ.get("MUJOCO_GL", "egl")
