@@ -1,7 +1,8 @@
 """IK benchmark: tsrl.ik.solve_ik against mink 1.3 on the same UR5e targets, in one run.
 
     pip install -e ".[bench]"
-    python benchmarks/ik.py            # 200 global + 200 local targets, seed 0
+    python benchmarks/ik.py              # 200 global + 200 local targets, seed 0
+    python benchmarks/ik.py --ablation   # what each ingredient of solve_ik adds (global targets)
 
 Both solvers load OUR model (tsrl.assets.load_model("reach")) and reach for the full pose of the
 `tcp` site. A solve succeeds when the position error is <= 1e-4 m and the orientation error is
@@ -30,7 +31,7 @@ import gc
 import time
 from collections.abc import Callable
 from importlib.metadata import version
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -120,11 +121,12 @@ def local_cases(model: mujoco.MjModel, rng: np.random.Generator, n: int) -> list
 class Ours:
     """solve_ik on position(tcp), quaternion(tcp); `with_value` passes the start value as the env does."""
 
-    def __init__(self, model: mujoco.MjModel, with_value: bool = False):
+    def __init__(self, model: mujoco.MjModel, with_value: bool = False, **options: Any):
         self.model, self.data = model, mujoco.MjData(model)
         self.task_map: TaskMap = parse_spec(f"position({TCP_SITE}), quaternion({TCP_SITE})", model)
         self.qadr = arm_qpos_indices(model)
         self.with_value = with_value
+        self.options = {"tol": OUR_TOL, **options}
 
     def __call__(self, case: Case) -> Outcome:
         model, data = self.model, self.data
@@ -136,7 +138,7 @@ class Ours:
         else:
             data.qpos[self.qadr] = case.q_start
         start = time.perf_counter()
-        result = solve_ik(model, data, self.task_map, target, tol=OUR_TOL, initial_value=value)
+        result = solve_ik(model, data, self.task_map, target, initial_value=value, **self.options)
         seconds = time.perf_counter() - start
         forward_kinematics(model, data, result.q)
         return Outcome(reached(model, data, case), result.iterations, seconds)
@@ -197,15 +199,42 @@ def summary(outcomes: list[Outcome]) -> tuple[float, float, float, float]:
     )
 
 
+#: What each ingredient of solve_ik adds, one start configuration at a time (--ablation).
+ABLATION: dict[str, dict[str, Any]] = {
+    "plain DLS (damping 1e-4, no step bound, one start)": {
+        "restarts": 0,
+        "adaptive_damping": 0.0,
+        "damping": 1e-4,
+        "max_step": 1e9,
+        "max_iters": 300,
+    },
+    "+ step bound 1 rad": {"restarts": 0, "adaptive_damping": 0.0, "damping": 1e-4, "max_iters": 300},
+    "+ adaptive damping 1e-6 + 1e-3 err^2": {"restarts": 0, "max_iters": 300},
+    "+ restarts after a stall (the defaults)": {},
+}
+
+
+def ablation(model: mujoco.MjModel, cases: list[Case]) -> None:
+    print("| global targets, tsrl | success | median iters | median time [us] | p90 time [us] |")
+    print("| --- | --- | --- | --- | --- |")
+    for name, options in ABLATION.items():
+        rate, iters, median, p90 = summary(run({name: Ours(model, **options)}, cases)[name])
+        print(f"| {name} | {rate:.1%} | {iters:.0f} | {median:.0f} | {p90:.0f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=200, help="targets per set")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--ablation", action="store_true", help="only ours, ingredient by ingredient")
     args = parser.parse_args()
 
     model = load_model("reach")
     rng = np.random.default_rng(args.seed)
     sets = {"global": global_cases(model, rng, args.n), "local": local_cases(model, rng, args.n)}
+    if args.ablation:
+        ablation(model, sets["global"])
+        return
     ours, ours_value, baseline = Ours(model), Ours(model, with_value=True), Mink(model)
 
     print(f"tsrl.ik vs mink {version('mink')} (daqp {version('daqp')}), mujoco {mujoco.__version__}")

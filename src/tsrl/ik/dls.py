@@ -77,28 +77,32 @@ def dls_step(
     """
     J = np.ascontiguousarray(J, dtype=np.float64)
     e = np.ascontiguousarray(error, dtype=np.float64)
+    d = None if nullspace is None else np.asarray(nullspace, dtype=np.float64)
+    m = min(J.shape)
+    return _dls(J, e, damping, d, np.empty((m, m)), np.empty(m))
+
+
+def _dls(
+    J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None, A: np.ndarray, x: np.ndarray
+) -> np.ndarray:
+    """`dls_step` on C-contiguous float64 J (k, n) and e (k,), with workspaces A (m, m) and x (m,), m = min(k, n)."""
     k, n = J.shape
-    if nullspace is not None:
-        d = np.asarray(nullspace, dtype=np.float64)
+    if d is not None:
         e = e - J @ d
     dq = np.empty(n)
     if k <= n:  # task space: (J J^T + lambda I) x = e, dq = J^T x
-        A = np.empty((k, k))
         mujoco.mju_mulMatMatT(A, J, J)
         A.flat[:: k + 1] += damping
         mujoco.mju_cholFactor(A, _MIN_PIVOT)
-        x = np.empty(k)
         mujoco.mju_cholSolve(x, A, e)
         mujoco.mju_mulMatTVec(dq, J, x)
     else:  # joint space: (J^T J + lambda I) dq = J^T e
-        A = np.empty((n, n))
         mujoco.mju_mulMatTMat(A, J, J)
         A.flat[:: n + 1] += damping
         mujoco.mju_cholFactor(A, _MIN_PIVOT)
-        b = np.empty(n)
-        mujoco.mju_mulMatTVec(b, J, e)
-        mujoco.mju_cholSolve(dq, A, b)
-    if nullspace is not None:
+        mujoco.mju_mulMatTVec(x, J, e)
+        mujoco.mju_cholSolve(dq, A, x)
+    if d is not None:
         dq += d
     return dq
 
@@ -132,21 +136,6 @@ class _Joints:
         self.seed_hi = np.where(hinge, np.minimum(self.hi, np.pi), np.where(limited, self.hi, 0.0))
 
 
-_JOINTS: weakref.WeakKeyDictionary[mujoco.MjModel, dict[tuple[str, ...], _Joints]] = (
-    weakref.WeakKeyDictionary()
-)
-
-
-def _joints(model: mujoco.MjModel, names: Sequence[str] | None) -> _Joints:
-    """The joints called `names` (default: the six UR5e arm joints), cached per model."""
-    key = JOINT_NAMES if names is None else tuple(names)
-    per_model = _JOINTS.setdefault(model, {})
-    joints = per_model.get(key)
-    if joints is None:
-        joints = per_model[key] = _Joints(model, key)
-    return joints
-
-
 class _Difference:
     """a - b in a map's coordinates, as `task_map.difference(a, b)` computes it.
 
@@ -168,21 +157,32 @@ class _Difference:
 
     def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         if self.parts is None:
-            return np.asarray(self.task_map.difference(a, b), dtype=np.float64)
+            return np.ascontiguousarray(self.task_map.difference(a, b), dtype=np.float64)
         out = a - b
         for part, span in self.parts:
             out[span] = part.difference(a[span], b[span])
         return out
 
 
-_DIFFERENCES: weakref.WeakKeyDictionary[TaskMap, _Difference] = weakref.WeakKeyDictionary()
+class _Setup(NamedTuple):
+    """What a call needs that depends only on (model, task map, joint names), cached per task map."""
+
+    model: mujoco.MjModel
+    names: tuple[str, ...]
+    joints: _Joints
+    difference: _Difference
 
 
-def _difference(task_map: TaskMap) -> _Difference:
-    diff = _DIFFERENCES.get(task_map)
-    if diff is None:
-        diff = _DIFFERENCES[task_map] = _Difference(task_map)
-    return diff
+_SETUPS: weakref.WeakKeyDictionary[TaskMap, _Setup] = weakref.WeakKeyDictionary()
+
+
+def _setup(model: mujoco.MjModel, task_map: TaskMap, joints: Sequence[str] | None) -> _Setup:
+    """The joints called `joints` (default: the six UR5e arm joints) and the map's difference."""
+    names = JOINT_NAMES if joints is None else tuple(joints)
+    setup = _SETUPS.get(task_map)
+    if setup is None or setup.model is not model or setup.names != names:
+        setup = _SETUPS[task_map] = _Setup(model, names, _Joints(model, names), _Difference(task_map))
+    return setup
 
 
 def _positive(name: str, value: float, *, allow_zero: bool = False) -> float:
@@ -199,6 +199,7 @@ def _count(name: str, value: int, minimum: int) -> int:
 
 
 def _vector(name: str, value: ArrayLike, size: int, what: str) -> np.ndarray:
+    """value as a finite float array of shape (size,); `what` (said of the size) goes into the error."""
     v = np.asarray(value, dtype=np.float64)
     if v.shape != (size,):
         raise InvalidConfig(f"{name} has shape {v.shape}; expected ({size},) {what}")
@@ -226,9 +227,8 @@ class _Problem:
         joints: Sequence[str] | None,
     ):
         self.model, self.data, self.task_map = model, data, task_map
-        self.difference = _difference(task_map)
-        self.joints = _joints(model, joints)
-        self.target = _vector("target", target, task_map.dim, f"for task map {task_map!r}")
+        _, _, self.joints, self.difference = _setup(model, task_map, joints)
+        self.target = _vector("target", target, task_map.dim, "for the task map's rows")
         self.weights = None
         if weights is not None:
             w = _vector("weights", weights, task_map.dim, "(one per row of the task map)")
@@ -239,6 +239,8 @@ class _Problem:
         self.adaptive_damping = _positive("adaptive_damping", adaptive_damping, allow_zero=True)
         self.max_step = _positive("max_step", max_step)
         n = self.joints.lo.shape[0]
+        m = min(n, task_map.dim)
+        self.A, self.x = np.empty((m, m)), np.empty(m)  # workspaces of _dls
         self.posture = None if posture is None else _vector("posture", posture, n, "(one per moved joint)")
         self.posture_gain = _positive("posture_gain", posture_gain, allow_zero=True)
 
@@ -272,6 +274,7 @@ class _Problem:
         e = self.difference(self.target, y)
         if self.joints.dadr is not None:
             J = J[:, self.joints.dadr]
+        J = np.ascontiguousarray(J, dtype=np.float64)  # no copy for a map's own J
         if self.weights is not None:
             e = e * self.weights
             J = J * self.weight_rows
@@ -281,7 +284,7 @@ class _Problem:
         """The next configuration q + dq, ||dq|| <= max_step, clipped to the limits; None if dq is not finite."""
         lam = self.damping + self.adaptive_damping * err * err
         d = None if self.posture is None else self.posture_gain * (self.posture - q)
-        dq = dls_step(J, e, lam, d)
+        dq = _dls(J, e, lam, d, self.A, self.x)
         norm = math.sqrt(dq @ dq)
         if not math.isfinite(norm):
             return None
