@@ -1,0 +1,207 @@
+"""Experiment definitions: a TOML file -> ExperimentConfig -> the grid of TrainConfigs it runs.
+
+A definition is data, never code: `tomllib` reads it, and every key is checked against the fields of
+ExperimentConfig (and `[agent]` against AgentConfig) with an error that names the file, the bad key or
+value and the accepted ones. docs/experiments.md describes the format.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..agents.config import AgentConfig, TrainConfig, from_dict
+from ..exceptions import InvalidConfig, TsrlError
+
+#: Folder of experiment definitions, relative to the repository root (the CLI's working directory).
+EXPERIMENTS_DIR = "experiments"
+SUFFIX = ".toml"
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """A grid of training runs: env x obs x action x algo x seeds, with one budget and one evaluation
+    schedule. Each list-valued field is an axis of the grid; `runs()` expands it."""
+
+    name: str
+    """Experiment name; results go to <out-dir>/<name>/. A file's name without .toml."""
+    description: str = ""
+    """One or two sentences: what the experiment compares, for the results' summary."""
+    env: tuple[str, ...] = ("tsrl/UR5eReach-v0",)
+    """Registered environment ids."""
+    obs: tuple[str, ...] = ("fs1",)
+    """Observation presets (baseline, simple, fs0, fs1, fs2) or task-map spec strings."""
+    action: tuple[str, ...] = ("taskspace",)
+    """Action modes: taskspace, taskspace_orient, joint."""
+    algo: tuple[str, ...] = ("ddpg",)
+    """Algorithms, each combined with HER: ddpg, td3, sac."""
+    seeds: tuple[int, ...] = (0,)
+    """Seeds of the runs (integers >= 0), e.g. [0, 1, 2, 3, 4]."""
+    total_timesteps: int = 20_000
+    """Budget of each run in env steps."""
+    eval_freq: int = 500
+    """Evaluate every this many env steps (and at step 0)."""
+    eval_episodes: int = 20
+    """Deterministic evaluation episodes per evaluation."""
+    checkpoint_freq: int = 5000
+    """Checkpoint every this many env steps (and at the end); an interrupted run resumes from the latest."""
+    agent: AgentConfig = field(default_factory=AgentConfig)
+    """Settings shared by every run (the file's [agent] table overrides AgentConfig's defaults); its
+    `algo` is replaced by each grid point's."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name or "/" in self.name or self.name.startswith("."):
+            raise InvalidConfig(f"name must be a non-empty folder name; got {self.name!r}")
+        if not isinstance(self.description, str):
+            raise InvalidConfig(f"description must be a string; got {self.description!r}")
+        for axis, item_type in (("env", str), ("obs", str), ("action", str), ("algo", str), ("seeds", int)):
+            values = getattr(self, axis)
+            kind = "string" if item_type is str else "integer"
+            if isinstance(values, str) and item_type is str:
+                values = (values,)
+            if not isinstance(values, list | tuple) or not values:
+                raise InvalidConfig(f"{axis} must be a non-empty list of {kind}s; got {values!r}")
+            for v in values:
+                if isinstance(v, bool) or not isinstance(v, item_type):
+                    raise InvalidConfig(f"{axis} must be a list of {kind}s; got {v!r} ({type(v).__name__})")
+            repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
+            if repeated:
+                raise InvalidConfig(f"{axis} lists {', '.join(map(repr, repeated))} more than once")
+            object.__setattr__(self, axis, tuple(values))
+        if isinstance(self.agent, dict):
+            object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
+        self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
+
+    def runs(self) -> list[TrainConfig]:
+        """One TrainConfig per grid point, seed-major (every configuration's seed 0 first), so that a
+        partial experiment already compares all configurations."""
+        return [
+            TrainConfig(
+                env_id=env,
+                obs=obs,
+                action=action,
+                seed=seed,
+                total_timesteps=self.total_timesteps,
+                eval_freq=self.eval_freq,
+                eval_episodes=self.eval_episodes,
+                checkpoint_freq=self.checkpoint_freq,
+                agent=dataclasses.replace(self.agent, algo=algo),
+            )
+            for seed, env, obs, action, algo in itertools.product(
+                self.seeds, self.env, self.obs, self.action, self.algo
+            )
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+#: Keys a definition file may hold: ExperimentConfig's fields; `name` comes from the file name.
+FILE_KEYS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "name")
+
+
+def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConfig:
+    """Reads and validates a definition file; `check_envs` also builds each (env, obs, action) once,
+    so an unknown observation spec fails here rather than inside a worker.
+
+    Raises InvalidConfig naming the file, the bad key or value, and the accepted ones.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as err:
+        raise InvalidConfig(f"cannot read experiment file {path}: {err.strerror}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise InvalidConfig(f"{path}: not valid TOML: {err}") from None
+    exp = experiment_from_dict(path.name.removesuffix(SUFFIX), data, where=str(path))
+    if check_envs:
+        check_environments(exp, where=str(path))
+    return exp
+
+
+def experiment_from_dict(name: str, data: dict[str, Any], where: str = "experiment") -> ExperimentConfig:
+    """Builds an ExperimentConfig from a definition's table (keys FILE_KEYS); errors start with `where`."""
+    unknown = sorted(set(data) - set(FILE_KEYS))
+    if unknown:
+        raise InvalidConfig(
+            f"{where}: unknown key {', '.join(map(repr, unknown))}; accepted: {', '.join(FILE_KEYS)}"
+        )
+    agent = data.get("agent", {})
+    if not isinstance(agent, dict):
+        raise InvalidConfig(f"{where}: agent must be a table ([agent]) of AgentConfig fields; got {agent!r}")
+    if "algo" in agent:
+        raise InvalidConfig(f"{where}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
+    try:
+        agent_cfg = from_dict(AgentConfig, agent)
+    except InvalidConfig as err:
+        raise InvalidConfig(f"{where}: [agent] {err}") from None
+    try:
+        return ExperimentConfig(name=name, **{k: v for k, v in data.items() if k != "agent"}, agent=agent_cfg)
+    except InvalidConfig as err:
+        raise InvalidConfig(f"{where}: {err}") from None
+
+
+def check_environments(exp: ExperimentConfig, where: str = "experiment") -> None:
+    """Builds each distinct (env, obs, action) of `exp` once; raises InvalidConfig naming the bad one."""
+    import gymnasium as gym
+
+    from ..agents.config import check_env_id
+
+    seen: set[tuple[str, str, str]] = set()
+    for cfg in exp.runs():
+        key = (cfg.env_id, cfg.obs, cfg.action)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            if cfg.is_tsrl_env:
+                check_env_id(cfg.env_id)
+            gym.make(cfg.env_id, **cfg.env_kwargs).close()
+        except TsrlError as err:
+            raise InvalidConfig(
+                f"{where}: env {cfg.env_id!r} with obs {cfg.obs!r}, action {cfg.action!r}: {err}"
+            ) from None
+        except gym.error.Error as err:
+            raise InvalidConfig(f"{where}: env {cfg.env_id!r}: {err}") from None
+
+
+def known_experiments(folders: list[Path]) -> list[str]:
+    """Names of the definition files in `folders`."""
+    return sorted({p.name.removesuffix(SUFFIX) for d in folders if d.is_dir() for p in d.glob(f"*{SUFFIX}")})
+
+
+def search_folders() -> list[Path]:
+    """Where experiment names are looked up: ./experiments, then the source checkout's experiments/
+    when tsrl is installed from one in editable mode (so the CLI works from any folder)."""
+    folders = [Path(EXPERIMENTS_DIR)]
+    checkout = Path(__file__).resolve().parents[3] / EXPERIMENTS_DIR
+    if (
+        (checkout.parent / "pyproject.toml").is_file()
+        and checkout.is_dir()
+        and checkout != folders[0].resolve()
+    ):
+        folders.append(checkout)
+    return folders
+
+
+def resolve_experiment(name_or_file: str) -> Path:
+    """The definition file of an experiment name (experiments/<name>.toml) or path (ends in .toml)."""
+    as_path = Path(name_or_file)
+    if name_or_file.endswith(SUFFIX) or len(as_path.parts) > 1:
+        if not as_path.is_file():
+            raise InvalidConfig(f"experiment file {as_path} does not exist")
+        return as_path
+    folders = search_folders()
+    for folder in folders:
+        candidate = folder / f"{name_or_file}{SUFFIX}"
+        if candidate.is_file():
+            return candidate
+    known = known_experiments(folders)
+    raise InvalidConfig(
+        f"unknown experiment {name_or_file!r}; known: {', '.join(known) or 'none'} "
+        f"(in {', '.join(map(str, folders))}), or pass the path of a .toml file"
+    )

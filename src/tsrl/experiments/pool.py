@@ -1,0 +1,338 @@
+"""Runs an experiment's grid: on local worker processes (default) or on a Ray cluster.
+
+Local: `workers` spawned processes (default: one per core), each with one torch thread, each running
+one run at a time. A run that crashes its process (segfault, out of memory) is reported as failed, the
+process replaced, and the others go on. Ctrl-C (or SIGTERM) stops launching runs and asks the running ones to checkpoint
+and stop; a second Ctrl-C stops at once. Ray (`pip install 'tsrl[ray]'`): one task per run with one
+CPU, on the cluster at `address` or on a local instance (`"local"`); the results folder must be on a
+file system every node sees at the same path.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing as mp
+import os
+import signal
+import sys
+import time
+from collections import deque
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import TextIO
+
+from ..agents.config import TrainConfig
+from ..agents.training import read_progress
+from ..exceptions import InvalidConfig
+from .config import ExperimentConfig
+from .runner import ERROR_FILE, RunOutcome, run_one, run_state
+
+EXPERIMENT_FILE = "experiment.json"
+#: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
+_WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def run_experiment(
+    exp: ExperimentConfig,
+    out_dir: Path | str,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    stream: TextIO | None = None,
+) -> list[RunOutcome]:
+    """Runs every run of `exp` into `<out_dir>/<exp.name>/`; returns their outcomes in grid order.
+
+    Finished runs are skipped without starting a worker; partial ones resume from their checkpoints.
+    """
+    exp_dir = Path(out_dir) / exp.name
+    exp_dir.mkdir(parents=True, exist_ok=True)
+    tmp = exp_dir / f".{EXPERIMENT_FILE}.tmp"
+    tmp.write_text(json.dumps(exp.to_dict(), indent=2) + "\n")
+    os.replace(tmp, exp_dir / EXPERIMENT_FILE)
+    if workers is not None and workers < 1:
+        raise InvalidConfig(f"--workers must be >= 1; got {workers}")
+
+    runs = exp.runs()
+    display = Progress(len(runs), exp_dir, stream if stream is not None else sys.stderr)
+    outcomes: dict[str, RunOutcome] = {}
+    todo = []
+    try:
+        for cfg in runs:  # the parent checks what is done: finished runs cost no worker
+            try:
+                finished = run_state(cfg, exp_dir / cfg.run_name) == "finished"
+            except Exception:  # noqa: BLE001  (a bad folder is the worker's to report, in error.txt)
+                finished = False
+            if finished:
+                outcome = run_one(cfg, exp_dir)  # cheap: only reads the folder
+                outcomes[cfg.run_name] = outcome
+                display.finished(outcome)
+            else:
+                todo.append(cfg)
+        if todo and ray_address is None:
+            _run_local(todo, exp_dir, workers or os.cpu_count() or 1, display, outcomes)
+        elif todo:
+            _run_ray(todo, exp_dir, ray_address, workers, display, outcomes)
+    finally:
+        display.close()
+    return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
+
+
+# -- local process pool ----------------------------------------------------------------------------
+def _worker(conn: Connection) -> None:
+    """A spawned worker process: runs the (config, experiment dir) it receives until it gets None."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # training handles SIGINT itself while it runs
+    os.environ.update(_WORKER_ENV)
+    while (task := conn.recv()) is not None:
+        conn.send(run_one(*task))
+
+
+class _Stop(Exception):
+    """SIGTERM in the parent: handled as Ctrl-C."""
+
+
+class _Worker:
+    """A worker process, its end of the pipe, and the run it is on (None: idle)."""
+
+    def __init__(self, ctx: mp.context.SpawnContext):
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker, args=(child,), daemon=True)
+        self.proc.start()
+        child.close()
+        self.cfg: TrainConfig | None = None
+        self.t0 = 0.0
+
+    def give(self, cfg: TrainConfig, exp_dir: Path) -> None:
+        self.conn.send((cfg, str(exp_dir)))
+        self.cfg, self.t0 = cfg, time.monotonic()
+
+
+def _run_local(
+    todo: list[TrainConfig], exp_dir: Path, workers: int, display: Progress, outcomes: dict[str, RunOutcome]
+) -> None:
+    """Persistent worker processes (torch's import costs seconds), one run at a time each; a worker
+    that dies is replaced and its run reported as failed."""
+    ctx = mp.get_context("spawn")
+    pending = deque(todo)
+    pool = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
+    stopping = False
+
+    def on_sigterm(signum: int, frame: object) -> None:
+        raise _Stop
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
+    try:
+        while pool:
+            try:
+                for w in pool:
+                    if w.cfg is None and pending and not stopping:
+                        w.give(pending.popleft(), exp_dir)
+                        display.started(w.cfg)  # type: ignore[arg-type]
+                for w in [w for w in pool if w.cfg is None]:
+                    w.conn.send(None)  # nothing left for it
+                    w.conn.close()
+                    pool.remove(w)
+                ready = set(wait([w.conn for w in pool] + [w.proc.sentinel for w in pool], display.refresh_s))
+                for w in list(pool):
+                    if w.conn in ready or w.proc.sentinel in ready:
+                        outcome = _collect(w, exp_dir, stopping)
+                        outcomes[outcome.run_name] = outcome
+                        display.finished(outcome)
+                        w.cfg = None
+                        if not w.proc.is_alive():
+                            pool.remove(w)
+                            if pending and not stopping:
+                                pool.append(_Worker(ctx))
+                display.refresh([w.cfg for w in pool if w.cfg is not None])
+            except (KeyboardInterrupt, _Stop):
+                if stopping:  # second interrupt: stop now
+                    for w in pool:
+                        w.proc.kill()
+                    raise KeyboardInterrupt from None
+                stopping = True
+                busy = [w for w in pool if w.cfg is not None]
+                display.message(
+                    f"stopping: {len(busy)} running run(s) save a checkpoint and stop; "
+                    f"{len(pending)} not started; Ctrl-C again to stop at once"
+                )
+                for w in busy:
+                    if w.proc.pid is not None:
+                        os.kill(w.proc.pid, signal.SIGTERM)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+    for cfg in pending:
+        outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+
+
+def _collect(w: _Worker, exp_dir: Path, stopping: bool) -> RunOutcome:
+    """The outcome the worker sent, or one that says how its process died."""
+    assert w.cfg is not None  # only busy workers report
+    try:
+        if w.conn.poll():
+            return w.conn.recv()
+    except (EOFError, OSError):
+        pass
+    w.proc.join()
+    w.conn.close()
+    code = w.proc.exitcode
+    how = f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}"
+    name, seconds = w.cfg.run_name, time.monotonic() - w.t0
+    if stopping:
+        return RunOutcome(name, "interrupted", 0, seconds, error=f"worker stopped ({how})")
+    error = f"worker process died ({how}; out of memory?) before reporting"
+    (exp_dir / name).mkdir(parents=True, exist_ok=True)
+    (exp_dir / name / ERROR_FILE).write_text(error + "\n")
+    return RunOutcome(name, "failed", 0, seconds, error=error)
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+# -- Ray -------------------------------------------------------------------------------------------
+def _ray_run(cfg: TrainConfig, exp_dir: str) -> RunOutcome:
+    """Body of a Ray task: one run."""
+    os.environ.update(_WORKER_ENV)
+    return run_one(cfg, exp_dir)
+
+
+def _run_ray(
+    todo: list[TrainConfig],
+    exp_dir: Path,
+    address: str,
+    workers: int | None,
+    display: Progress,
+    outcomes: dict[str, RunOutcome],
+) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'") from None
+
+    started_here = not ray.is_initialized()
+    if started_here:
+        kwargs: dict[str, object] = {"runtime_env": {"env_vars": _WORKER_ENV}, "log_to_driver": False}
+        if address == "local":
+            kwargs.update(address="local", include_dashboard=False, num_cpus=workers)
+        else:
+            kwargs["address"] = address
+        try:
+            ray.init(**kwargs)
+        except (ConnectionError, ValueError, RuntimeError) as err:
+            raise InvalidConfig(f"cannot connect to Ray at {address!r}: {err}".splitlines()[0]) from None
+    try:
+        slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+        task = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
+        pending = deque(todo)
+        running: dict[object, tuple[TrainConfig, float]] = {}
+        while pending or running:
+            while pending and len(running) < slots:
+                cfg = pending.popleft()
+                running[task.remote(cfg, str(exp_dir.resolve()))] = (cfg, time.monotonic())
+                display.started(cfg)
+            done, _ = ray.wait(list(running), num_returns=1, timeout=display.refresh_s)
+            for ref in done:
+                cfg, t0 = running.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except ray.exceptions.RayError as err:
+                    error = f"Ray task failed: {err}".splitlines()[0]
+                    (exp_dir / cfg.run_name).mkdir(parents=True, exist_ok=True)
+                    (exp_dir / cfg.run_name / ERROR_FILE).write_text(str(err) + "\n")
+                    outcome = RunOutcome(cfg.run_name, "failed", 0, time.monotonic() - t0, error=error)
+                outcomes[cfg.run_name] = outcome
+                display.finished(outcome)
+            display.refresh([cfg for cfg, _ in running.values()])
+    except KeyboardInterrupt:
+        for ref in running:
+            ray.cancel(ref, force=True)
+        raise
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+# -- progress display ------------------------------------------------------------------------------
+class Progress:
+    """Runs done, running and left: a line per finished run, and on a terminal a status line with the
+    running runs' env steps, rewritten in place."""
+
+    refresh_s = 2.0
+
+    def __init__(self, total: int, exp_dir: Path, stream: TextIO):
+        self.total = total
+        self.exp_dir = exp_dir
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.counts = {"trained": 0, "resumed": 0, "skipped": 0, "failed": 0, "interrupted": 0}
+        self.running: list[TrainConfig] = []
+        self.message(f"experiment {exp_dir.name}: {total} runs -> {exp_dir}")
+
+    @property
+    def done(self) -> int:
+        return sum(self.counts.values())
+
+    def started(self, cfg: TrainConfig) -> None:
+        self.running.append(cfg)
+        if self.tty:
+            self._status()
+        else:
+            self.message(f"started {cfg.run_name} | {self._counts()}")
+
+    def finished(self, outcome: RunOutcome) -> None:
+        self.counts[outcome.status] += 1
+        self.running = [c for c in self.running if c.run_name != outcome.run_name]
+        detail = f"{outcome.env_steps} env steps"
+        if not math.isnan(outcome.success):
+            detail += f", eval success {outcome.success:.2f}"
+        if outcome.status != "skipped":
+            detail += f", {outcome.seconds:.0f} s"
+        if outcome.error:
+            detail += f" -- {outcome.error}"
+        width = len(str(self.total))
+        line = f"[{self.done:>{width}}/{self.total}] {outcome.status:<11} {outcome.run_name}: {detail}"
+        self.message(line if self.tty else f"{line} | {self._counts()}")
+
+    def refresh(self, running: list[TrainConfig]) -> None:
+        self.running = list(running)
+        self._status(with_steps=True)
+
+    def message(self, text: str) -> None:
+        self._clear()
+        print(text, file=self.stream, flush=True)
+
+    def close(self) -> None:
+        self._clear()
+        c = self.counts
+        self.message(
+            f"{self.done}/{self.total} runs: {c['trained']} trained, {c['resumed']} resumed, "
+            f"{c['skipped']} skipped (finished before), {c['failed']} failed, {c['interrupted']} interrupted"
+        )
+
+    def _counts(self) -> str:
+        left = self.total - self.done - len(self.running)
+        failed = f", {self.counts['failed']} failed" if self.counts["failed"] else ""
+        return f"done {self.done}/{self.total}{failed} | running {len(self.running)} | left {left}"
+
+    def _status(self, with_steps: bool = False) -> None:
+        if not self.tty:
+            return
+        text = self._counts()
+        if with_steps and self.running:
+            steps = []
+            for cfg in self.running:
+                rows = read_progress(self.exp_dir / cfg.run_name)
+                at = int(rows[-1]["env_steps"]) if rows else 0
+                steps.append(
+                    f"{cfg.obs}/{cfg.action}/{cfg.agent.algo}/s{cfg.seed} {at}/{cfg.total_timesteps}"
+                )
+            text += " | " + ", ".join(steps)
+        columns = os.get_terminal_size(self.stream.fileno()).columns if self.tty else 200
+        self.stream.write("\r\033[K" + text[: columns - 1])
+        self.stream.flush()
+
+    def _clear(self) -> None:
+        if self.tty:
+            self.stream.write("\r\033[K")
