@@ -331,6 +331,9 @@ def _parser() -> tuple[argparse.ArgumentParser, list[tuple[str, str]]]:
     p_demo.add_argument("--scene", default="reach", help=f"built-in scene: {', '.join(SCENES)}")
     p_demo.add_argument("--poses", type=int, default=3, help="number of random poses besides home")
     p_demo.add_argument("--seed", type=int, default=0, help="seed of the random poses")
+    from .experiments.cli import add_experiment_commands
+
+    add_experiment_commands(commands)  # experiment, report: handled by args.handler
     return parser, paths
 
 
@@ -338,6 +341,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser, paths = _parser()
     args = parser.parse_args(argv)
     try:
+        if hasattr(args, "handler"):
+            return args.handler(args)
         if args.command == "train":
             return _cmd_train(args, paths)
         if args.command == "evaluate":
