@@ -20,6 +20,8 @@ from ..exceptions import InvalidConfig, TsrlError
 #: Folder of experiment definitions, relative to the repository root (the CLI's working directory).
 EXPERIMENTS_DIR = "experiments"
 SUFFIX = ".toml"
+#: The validated ExperimentConfig, written into the experiment's results folder by each run of it.
+EXPERIMENT_FILE = "experiment.json"
 
 
 @dataclass(frozen=True)

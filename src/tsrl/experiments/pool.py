@@ -25,10 +25,9 @@ from typing import TextIO
 from ..agents.config import TrainConfig
 from ..agents.training import read_progress
 from ..exceptions import InvalidConfig
-from .config import ExperimentConfig
+from .config import EXPERIMENT_FILE, ExperimentConfig
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
-EXPERIMENT_FILE = "experiment.json"
 #: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 

@@ -1,0 +1,47 @@
+"""Learning curves of an experiment: eval success rate vs episodes or env steps, one colour per
+configuration, mean across seeds with its 95% bootstrap interval (tsrl.experiments.aggregate)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from .aggregate import Curve, config_labels
+
+
+def plot_curves(curves: list[Curve], x: Literal["episodes", "env_steps"], out: Path, title: str) -> Path:
+    """Writes a PNG of `curves` against training episodes (as the paper plots) or env steps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = config_labels([c.key for c in curves])
+    colours = plt.get_cmap("tab10" if len(curves) <= 10 else "tab20").colors
+    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
+    for i, (curve, label) in enumerate(zip(curves, labels, strict=True)):
+        xs = curve.episodes if x == "episodes" else curve.env_steps
+        mean, low, high = curve.stats()
+        n = len(curve.seeds)
+        colour = colours[i % len(colours)]
+        ax.plot(
+            xs,
+            mean,
+            color=colour,
+            label=f"{label} ({n} seed{'s' if n > 1 else ''})",
+            marker="." if len(xs) < 30 else None,
+        )
+        if n > 1:
+            ax.fill_between(xs, low, high, color=colour, alpha=0.2, linewidth=0)
+    ax.set_xlabel("training episodes" if x == "episodes" else "env steps")
+    ax.set_ylabel("eval success rate")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title(f"{title}: mean and 95% bootstrap CI across seeds", fontsize=10)
+    fig.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
+    plt.close(fig)
+    return out
