@@ -11,6 +11,7 @@ import pytest
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS
 from tsrl.exceptions import InvalidConfig, UnknownName
 from tsrl.ik import IKResult, dls_step, ik_step, solve_ik
+from tsrl.ik.dls import _Difference
 from tsrl.kinematics import forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
 
@@ -40,6 +41,19 @@ def test_dls_step_null_space_term_is_the_projected_posture_step(rng):
     pinv = J.T @ np.linalg.inv(J @ J.T + lam * np.eye(3))
     expected = pinv @ e + (np.eye(6) - pinv @ J) @ d
     np.testing.assert_allclose(dls_step(J, e, lam, d), expected, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "spec", [POSE, ALIGNMENT, "fs2", "quaternion(tcp)", "quaternion(tcp), quaternion(flange)"]
+)
+def test_solver_difference_gives_the_maps_own_numbers(reach_model, spec, rng):
+    """The loop's shortcut for stacks and quaternions equals task_map.difference, sign boundary included."""
+    task_map = parse_spec(spec, reach_model)
+    pairs = [rng.normal(size=(2, task_map.dim)) for _ in range(50)]
+    boundary = np.zeros((2, task_map.dim))
+    boundary[0, ::4], boundary[1, 1::4] = 1.0, 1.0  # quaternion rows with a . b = 0
+    for a, b in [*pairs, boundary]:
+        np.testing.assert_array_equal(_Difference(task_map)(a, b), task_map.difference(a, b))
 
 
 # Known solutions

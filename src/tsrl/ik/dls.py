@@ -18,6 +18,7 @@ from ..assets.ur5e import JOINT_NAMES
 from ..exceptions import InvalidConfig
 from ..kinematics import name_to_id
 from ..taskmaps.base import TaskMap, TaskMapValue
+from ..taskmaps.orientation import Quaternion
 from ..taskmaps.stack import Stack
 
 #: Stop when ||W (y* - y)|| falls below this.
@@ -78,27 +79,34 @@ def dls_step(
     J = np.ascontiguousarray(J, dtype=np.float64)
     e = np.ascontiguousarray(error, dtype=np.float64)
     d = None if nullspace is None else np.asarray(nullspace, dtype=np.float64)
-    m = min(J.shape)
-    return _dls(J, e, damping, d, np.empty((m, m)), np.empty(m))
+    return _dls(J, e, damping, d, _Workspace(min(J.shape)))
 
 
-def _dls(
-    J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None, A: np.ndarray, x: np.ndarray
-) -> np.ndarray:
-    """`dls_step` on C-contiguous float64 J (k, n) and e (k,), with workspaces A (m, m) and x (m,), m = min(k, n)."""
+class _Workspace:
+    """Buffers of `_dls` for an (m, m) system: A, its diagonal (a view) and x (m,)."""
+
+    def __init__(self, m: int):
+        self.A = np.empty((m, m))
+        self.diag = self.A.reshape(-1)[:: m + 1]
+        self.x = np.empty(m)
+
+
+def _dls(J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None, ws: _Workspace) -> np.ndarray:
+    """`dls_step` on C-contiguous float64 J (k, n) and e (k,), in a workspace for m = min(k, n)."""
     k, n = J.shape
     if d is not None:
         e = e - J @ d
+    A, x = ws.A, ws.x
     dq = np.empty(n)
     if k <= n:  # task space: (J J^T + lambda I) x = e, dq = J^T x
         mujoco.mju_mulMatMatT(A, J, J)
-        A.flat[:: k + 1] += damping
+        ws.diag += damping
         mujoco.mju_cholFactor(A, _MIN_PIVOT)
         mujoco.mju_cholSolve(x, A, e)
         mujoco.mju_mulMatTVec(dq, J, x)
     else:  # joint space: (J^T J + lambda I) dq = J^T e
         mujoco.mju_mulMatTMat(A, J, J)
-        A.flat[:: n + 1] += damping
+        ws.diag += damping
         mujoco.mju_cholFactor(A, _MIN_PIVOT)
         mujoco.mju_mulMatTVec(x, J, e)
         mujoco.mju_cholSolve(dq, A, x)
@@ -130,27 +138,30 @@ class _Joints:
         rng = model.jnt_range[ids]
         self.lo = np.where(limited, rng[:, 0], -np.inf)
         self.hi = np.where(limited, rng[:, 1], np.inf)
-        # Restart seeds: hinges within [-pi, pi] (every angle once), slides within their range.
+        # Restart seeds: hinges within [-pi, pi] (every angle once), slides within their range
+        # (at 0 for a slide without limits).
         hinge = np.array([t == _HINGE for t in types])
         self.seed_lo = np.where(hinge, np.maximum(self.lo, -np.pi), np.where(limited, self.lo, 0.0))
         self.seed_hi = np.where(hinge, np.minimum(self.hi, np.pi), np.where(limited, self.hi, 0.0))
 
 
 class _Difference:
-    """a - b in a map's coordinates, as `task_map.difference(a, b)` computes it.
+    """a - b in a map's coordinates, the numbers `task_map.difference(a, b)` gives, for 1-D a and b.
 
-    For a stock `Stack`, whose difference is each part's difference on its rows, only the parts
-    that override `difference` (quaternions, say) are called and the other rows are subtracted
-    directly: the same numbers at a third of the cost in the solver's loop.
+    For a stock `Stack` (whose difference is each part's difference on its rows) only the rows of
+    parts that override `difference` are treated, the rest subtracted at once; `Quaternion` parts
+    apply their documented rule a - sign(a . b) b (sign 1 at 0, docs/taskmaps.md) directly. Both
+    give the same numbers as the maps' own methods (tests/ik/test_dls.py checks it), for a quarter
+    of the cost, which in the solver's loop is more than the map evaluation itself.
     """
 
     def __init__(self, task_map: TaskMap):
         self.task_map = task_map
-        self.parts: tuple[tuple[TaskMap, slice], ...] | None = None
+        self.parts: tuple[tuple[TaskMap | None, slice], ...] | None = None
         if type(task_map).difference is Stack.difference:
             stack: Stack = task_map  # type: ignore[assignment]
             self.parts = tuple(
-                (part, span)
+                (None if type(part).difference is Quaternion.difference else part, span)
                 for part, span in zip(stack.parts, stack.slices.values())
                 if type(part).difference is not TaskMap.difference
             )
@@ -160,7 +171,11 @@ class _Difference:
             return np.ascontiguousarray(self.task_map.difference(a, b), dtype=np.float64)
         out = a - b
         for part, span in self.parts:
-            out[span] = part.difference(a[span], b[span])
+            if part is None:  # a quaternion
+                if a[span] @ b[span] < 0.0:
+                    out[span] = a[span] + b[span]
+            else:
+                out[span] = part.difference(a[span], b[span])
         return out
 
 
@@ -239,8 +254,7 @@ class _Problem:
         self.adaptive_damping = _positive("adaptive_damping", adaptive_damping, allow_zero=True)
         self.max_step = _positive("max_step", max_step)
         n = self.joints.lo.shape[0]
-        m = min(n, task_map.dim)
-        self.A, self.x = np.empty((m, m)), np.empty(m)  # workspaces of _dls
+        self.workspace = _Workspace(min(n, task_map.dim))
         self.posture = None if posture is None else _vector("posture", posture, n, "(one per moved joint)")
         self.posture_gain = _positive("posture_gain", posture_gain, allow_zero=True)
 
@@ -278,13 +292,14 @@ class _Problem:
         if self.weights is not None:
             e = e * self.weights
             J = J * self.weight_rows
-        return e, J, math.sqrt(e @ e)
+        err = math.sqrt(e @ e)
+        return e, J, err if math.isfinite(err) else math.inf  # a NaN in y never reaches the result
 
     def step(self, q: np.ndarray, e: np.ndarray, J: np.ndarray, err: float) -> np.ndarray | None:
         """The next configuration q + dq, ||dq|| <= max_step, clipped to the limits; None if dq is not finite."""
         lam = self.damping + self.adaptive_damping * err * err
         d = None if self.posture is None else self.posture_gain * (self.posture - q)
-        dq = _dls(J, e, lam, d, self.A, self.x)
+        dq = _dls(J, e, lam, d, self.workspace)
         norm = math.sqrt(dq @ dq)
         if not math.isfinite(norm):
             return None
@@ -453,8 +468,6 @@ def solve_ik(
                 break
             q = evaluated = q_next
             e, J, err = problem.evaluate(q)
-            if not math.isfinite(err):
-                err = math.inf
             history.append(err)
             if attempt == 0 and err < best_err:
                 best_q, best_err = q, err
