@@ -83,5 +83,5 @@ def test_resume_with_a_larger_budget_continues_counters_buffer_and_normaliser(tm
 
 def test_plain_her_runs_for_comparison(tmp_path):
     run_dir = train(tiny(her=HerConfig(relabel="plain")), tmp_path, progress_bar=False)
-    assert load_config(run_dir).agent.her.relabel == "plain"
+    assert run_dir.name.endswith("__s0__her-plain") and load_config(run_dir).agent.her.relabel == "plain"
     assert [r["env_steps"] for r in read_progress(run_dir)] == [0, 100, 200]

@@ -41,6 +41,8 @@ class RunState:
     """Training wall time up to the checkpoint, evaluations included, summed over resumed sessions."""
     next_eval: int
     next_checkpoint: int
+    eval_time_s: float = 0.0
+    """Part of wall_time_s spent in evaluations."""
 
 
 def checkpoint_dirs(run_dir: Path) -> list[Path]:

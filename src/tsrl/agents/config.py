@@ -205,7 +205,8 @@ class TrainConfig:
     def run_name(self) -> str:
         """`<env>__<obs>__<action>__<algo>__s<seed>`, e.g. tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0.
 
-        A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json).
+        A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
+        with stable-baselines3's plain HER get a `__her-plain` suffix.
         """
         obs = self.obs
         if obs not in OBS_PRESET_NAMES and obs != NATIVE:
@@ -213,7 +214,8 @@ class TrainConfig:
 
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
         env = self.env_id.replace("/", "-")
-        return f"{env}__{obs}__{self.action}__{self.agent.algo}__s{self.seed}"
+        suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
+        return f"{env}__{obs}__{self.action}__{self.agent.algo}__s{self.seed}{suffix}"
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

@@ -3,7 +3,9 @@
 ```
 <out_dir>/<env>__<obs>__<action>__<algo>__s<seed>/
     config.json        the exact, validated TrainConfig
-    progress.csv       env_steps, episodes, wall_time_s, eval_success_rate, ... (one row per evaluation)
+    progress.csv       one row per evaluation: env_steps, episodes, wall_time_s (training + evaluation,
+                       summed over resumed sessions), eval_time_s (its evaluation part),
+                       eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss
     tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
     checkpoints/       latest model, replay buffer, normaliser statistics, counters, RNG states
     learning_curve.png written when the run completes
@@ -47,6 +49,7 @@ PROGRESS_COLUMNS: tuple[str, ...] = (
     "env_steps",
     "episodes",
     "wall_time_s",
+    "eval_time_s",
     "eval_success_rate",
     "eval_final_distance_m",
     "train_success_rate",
@@ -187,6 +190,7 @@ class _SafePointCallback(BaseCallback):
         self.next_eval = state.next_eval
         self.next_checkpoint = state.next_checkpoint
         self.wall_base = state.wall_time_s
+        self.eval_time = state.eval_time_s
         self.t0 = time.monotonic()
         self.last_eval_step = last_eval_step
         self.last_success = float("nan")
@@ -252,7 +256,9 @@ class _SafePointCallback(BaseCallback):
             self.next_eval = (step // self.cfg.eval_freq + 1) * self.cfg.eval_freq
         if step >= self.next_checkpoint or final or stop is not None:
             self.next_checkpoint = (step // self.cfg.checkpoint_freq + 1) * self.cfg.checkpoint_freq
-            state = RunState(step, model._episode_num, self.wall_time(), self.next_eval, self.next_checkpoint)
+            state = RunState(
+                step, model._episode_num, self.wall_time(), self.next_eval, self.next_checkpoint, self.eval_time
+            )
             save_checkpoint(self.session.run_dir, model, self.session.normalizer, state)
         if stop is not None:
             model.logger.close()
@@ -260,12 +266,15 @@ class _SafePointCallback(BaseCallback):
             raise TrainingInterrupted(stop, self.session.run_dir, step)
 
     def _evaluate(self, model: OffPolicyAlgorithm, step: int) -> None:
+        t0 = time.monotonic()
         result = self.session.evaluator.evaluate(model, self.session.normalizer)
+        self.eval_time += time.monotonic() - t0
         losses = model.logger.name_to_value
         row = {
             "env_steps": step,
             "episodes": model._episode_num,
             "wall_time_s": f"{self.wall_time():.3f}",
+            "eval_time_s": f"{self.eval_time:.3f}",
             "eval_success_rate": f"{result.success_rate:.4f}",
             "eval_final_distance_m": f"{result.mean_final_distance:.5f}",
             "train_success_rate": _fmt(_train_success(model)),
