@@ -36,7 +36,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
-from .checkpoint import RunState, latest_checkpoint, load_checkpoint, save_checkpoint
+from .checkpoint import RunState, latest_checkpoint, load_checkpoint, read_state, save_checkpoint
 from .config import CONFIG_FILE, TrainConfig, from_dict, load_config
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGOS, buffer_capacity, make_agent, make_vec_env
@@ -95,11 +95,15 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
     new budget; counters, replay buffer and normaliser statistics come back."""
     run_dir = Path(run_dir)
     cfg = load_config(run_dir)
+    checkpoint = latest_checkpoint(run_dir)
+    done = read_state(checkpoint).env_steps if checkpoint is not None else 0
+    if total_timesteps is not None and total_timesteps < done:
+        raise InvalidConfig(f"--total-timesteps {total_timesteps} is below the {done} env steps already done")
     if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
         cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
         _write_json_atomic(run_dir / CONFIG, cfg.to_dict())
     session = _Session(cfg, run_dir, progress_bar)
-    session.run(checkpoint=latest_checkpoint(run_dir))
+    session.run(checkpoint=checkpoint)
     return run_dir
 
 
@@ -257,7 +261,12 @@ class _SafePointCallback(BaseCallback):
         if step >= self.next_checkpoint or final or stop is not None:
             self.next_checkpoint = (step // self.cfg.checkpoint_freq + 1) * self.cfg.checkpoint_freq
             state = RunState(
-                step, model._episode_num, self.wall_time(), self.next_eval, self.next_checkpoint, self.eval_time
+                step,
+                model._episode_num,
+                self.wall_time(),
+                self.next_eval,
+                self.next_checkpoint,
+                self.eval_time,
             )
             save_checkpoint(self.session.run_dir, model, self.session.normalizer, state)
         if stop is not None:
