@@ -53,7 +53,7 @@ def test_solver_difference_gives_the_maps_own_numbers(reach_model, spec, rng):
     boundary = np.zeros((2, task_map.dim))
     boundary[0, ::4], boundary[1, 1::4] = 1.0, 1.0  # quaternion rows with a . b = 0
     for a, b in [*pairs, boundary]:
-        np.testing.assert_array_equal(_Difference(task_map)(a, b), task_map.difference(a, b))
+        np.testing.assert_array_equal(_Difference(task_map)(task_map, a, b), task_map.difference(a, b))
 
 
 # Known solutions
@@ -326,6 +326,12 @@ def test_bad_input_raises_a_clear_error(ur5e, pose_map, kwargs, match):
     error = UnknownName if "joints" in kwargs and "box" in kwargs["joints"] else InvalidConfig
     with pytest.raises(error, match=match):
         solve_ik(model, data, pose_map, **kwargs)
+
+
+def test_unknown_option_is_named(ur5e, pose_map):
+    model, data = ur5e
+    with pytest.raises(TypeError, match="tolerance"):
+        solve_ik(model, data, pose_map, target_at(model, pose_map, HOME_Q), tolerance=1e-3)
 
 
 def test_a_free_joint_cannot_be_moved(pick_place_model):

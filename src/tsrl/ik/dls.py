@@ -156,19 +156,19 @@ class _Difference:
     """
 
     def __init__(self, task_map: TaskMap):
-        self.task_map = task_map
+        # Holds the stack's parts, never the map itself: the map is the key of the cache below.
         self.parts: tuple[tuple[TaskMap | None, slice], ...] | None = None
-        if type(task_map).difference is Stack.difference:
-            stack: Stack = task_map  # type: ignore[assignment]
+        if isinstance(task_map, Stack) and type(task_map).difference is Stack.difference:
             self.parts = tuple(
                 (None if type(part).difference is Quaternion.difference else part, span)
-                for part, span in zip(stack.parts, stack.slices.values())
+                for part, span in zip(task_map.parts, task_map.slices.values())
                 if type(part).difference is not TaskMap.difference
             )
 
-    def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def __call__(self, task_map: TaskMap, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """task_map.difference(a, b) for the map this was built for, a and b (dim,)."""
         if self.parts is None:
-            return np.ascontiguousarray(self.task_map.difference(a, b), dtype=np.float64)
+            return np.ascontiguousarray(task_map.difference(a, b), dtype=np.float64)
         out = a - b
         for part, span in self.parts:
             if part is None:  # a quaternion
@@ -182,7 +182,7 @@ class _Difference:
 class _Setup(NamedTuple):
     """What a call needs that depends only on (model, task map, joint names), cached per task map."""
 
-    model: mujoco.MjModel
+    model: weakref.ref[mujoco.MjModel]
     names: tuple[str, ...]
     joints: _Joints
     difference: _Difference
@@ -195,8 +195,9 @@ def _setup(model: mujoco.MjModel, task_map: TaskMap, joints: Sequence[str] | Non
     """The joints called `joints` (default: the six UR5e arm joints) and the map's difference."""
     names = JOINT_NAMES if joints is None else tuple(joints)
     setup = _SETUPS.get(task_map)
-    if setup is None or setup.model is not model or setup.names != names:
-        setup = _SETUPS[task_map] = _Setup(model, names, _Joints(model, names), _Difference(task_map))
+    if setup is None or setup.model() is not model or setup.names != names:
+        setup = _Setup(weakref.ref(model), names, _Joints(model, names), _Difference(task_map))
+        _SETUPS[task_map] = setup
     return setup
 
 
@@ -285,7 +286,7 @@ class _Problem:
     def residual(self, value: TaskMapValue) -> tuple[np.ndarray, np.ndarray, float]:
         """(e (k,), W J (k, n), ||e||) for a task-map value (y, J)."""
         y, J = value
-        e = self.difference(self.target, y)
+        e = self.difference(self.task_map, self.target, y)
         if self.joints.dadr is not None:
             J = J[:, self.joints.dadr]
         J = np.ascontiguousarray(J, dtype=np.float64)  # no copy for a map's own J
