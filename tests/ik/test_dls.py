@@ -312,6 +312,7 @@ def test_ik_step_is_one_paper_step_and_leaves_data_alone(ur5e, pose_map):
         ({"damping": -1e-3}, "damping must be > 0; got -0.001"),
         ({"adaptive_damping": -1.0}, "adaptive_damping must be >= 0; got -1.0"),
         ({"max_step": 0}, "max_step must be > 0; got 0"),
+        ({"max_step": "big"}, "max_step must be a number; got 'big'"),
         ({"weights": np.ones(3)}, r"weights has shape \(3,\); expected \(7,\)"),
         ({"weights": -np.ones(7)}, "weights must be >= 0"),
         ({"posture": np.zeros(7)}, r"posture has shape \(7,\); expected \(6,\)"),
