@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-import mujoco
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: off-screen rendering in tests
+
+import mujoco  # noqa: E402
 import numpy as np
 import pytest
 
