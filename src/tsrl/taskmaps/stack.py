@@ -43,6 +43,10 @@ class Stack(TaskMap):
         self.spec = ", ".join(p.spec for p in self.parts)
         self.frames = tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
         self._spans = tuple(self.slices.values())
+        # Only parts whose coordinates can jump (quaternions) need their own difference.
+        self._jumpy = tuple(
+            (p, span) for p, span in zip(self.parts, self._spans) if type(p).difference is not TaskMap.difference
+        )
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return tuple(f for p in self.parts for f in p.frame_refs())
@@ -57,7 +61,7 @@ class Stack(TaskMap):
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
         out = a - b
-        for part, span in zip(self.parts, self._spans):
+        for part, span in self._jumpy:
             out[..., span] = part.difference(a[..., span], b[..., span])
         return out
 
