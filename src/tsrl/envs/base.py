@@ -6,6 +6,7 @@ evaluated once, their values and Jacobians reused for observation, reward and th
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Any, ClassVar
 
@@ -24,6 +25,9 @@ from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
 from ..taskmaps import OBS_PRESETS, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
 
+#: Target of vectorZ(tcp) in `taskspace` mode: the suction cup points down.
+_CUP_DOWN = np.array([0.0, 0.0, -1.0])
+
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
 _INSTABILITY_WARNINGS = tuple(
     int(w)
@@ -40,10 +44,13 @@ def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
     a = np.asarray(action, dtype=np.float64)
     if a.shape != space.shape:
         raise InvalidAction(f"action of shape {a.shape}; expected {space.shape}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
-    return np.clip(a, space.low, space.high)
+    return np.minimum(np.maximum(a, space.low), space.high)
 
+
+#: Target of vectorZ(tcp) in `taskspace` mode: the suction cup points down.
+_CUP_DOWN = np.array([0.0, 0.0, -1.0])
 
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
 _INSTABILITY_WARNINGS = (
@@ -181,8 +188,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
 
         Reads only the goals. Vectorised: goals (3,) -> (), (B, 3) -> (B,); float32.
         """
-        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
-        return (d < self.success_radius).astype(np.float32)
+        diff = np.asarray(achieved_goal) - np.asarray(desired_goal)
+        return (np.einsum("...i,...i->...", diff, diff) < self.success_radius**2).astype(np.float32)
 
     def relabel(self, obs: dict[str, np.ndarray], new_goal: ArrayLike) -> dict[str, np.ndarray]:
         """The observation the environment would have emitted with the goal at `new_goal`.
@@ -257,7 +264,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         return obs
 
     def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
-        distance = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
+        diff = obs["achieved_goal"] - obs["desired_goal"]
+        distance = math.sqrt(diff @ diff)
         return {
             "is_success": distance < self.success_radius,
             "distance": distance,
@@ -272,18 +280,20 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         cfg = self.action_config
         q = self.data.qpos[self._arm_qpos]
         if cfg.mode == "joint":
-            return np.clip(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]), 0.0
+            return np.minimum(
+                np.maximum(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0]), JOINT_LIMITS[:, 1]
+            ), 0.0
         y_ik = self._value.y[self._ik_rows]
-        position = self._clip_to_workspace(y_ik[:3] + cfg.max_tcp_step * a[:3])
-        if cfg.mode == "taskspace":
-            target = np.concatenate([position, [0.0, 0.0, -1.0]])
-        else:
-            target = np.concatenate([position, a[3:6]])
+        target = np.empty(self.ik_map.dim)
+        target[:3] = np.minimum(
+            np.maximum(y_ik[:3] + cfg.max_tcp_step * a[:3], self.workspace_low), self.workspace_high
+        )
+        target[3:] = _CUP_DOWN if cfg.mode == "taskspace" else a[3:6]
         initial = TaskMapValue(y_ik, self._value.J[self._ik_rows])
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
             q_target = ik_step(self.model, self.data, self.ik_map, target, initial_value=initial)
             residual = self.ik_map.difference(target, y_ik) - initial.J[:, self._arm_dofs] @ (q_target - q)
-            return q_target, float(np.linalg.norm(residual))
+            return q_target, math.sqrt(residual @ residual)
         self._ik_data.qpos[:] = self.data.qpos
         result = solve_ik(  # a local solve from the current pose: no restarts
             self.model,
@@ -295,6 +305,3 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             restarts=0,
         )
         return result.q, result.error_norm
-
-    def _clip_to_workspace(self, position: np.ndarray) -> np.ndarray:
-        return np.clip(position, self.workspace_low, self.workspace_high)
