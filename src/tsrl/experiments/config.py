@@ -70,6 +70,8 @@ class ExperimentConfig:
             for v in values:
                 if isinstance(v, bool) or not isinstance(v, item_type):
                     raise InvalidConfig(f"{axis} must be a list of {kind}s; got {v!r} ({type(v).__name__})")
+            if axis == "seeds" and min(values) < 0:
+                raise InvalidConfig(f"seeds must be integers >= 0; got {min(values)}")
             repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
             if repeated:
                 raise InvalidConfig(f"{axis} lists {', '.join(map(repr, repeated))} more than once")

@@ -80,7 +80,6 @@ def run_experiment(
 def _worker(conn: Connection) -> None:
     """A spawned worker process: runs the (config, experiment dir) it receives until it gets None."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # training handles SIGINT itself while it runs
-    os.environ.update(_WORKER_ENV)
     while (task := conn.recv()) is not None:
         conn.send(run_one(*task))
 
@@ -95,7 +94,16 @@ class _Worker:
     def __init__(self, ctx: mp.context.SpawnContext):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child,), daemon=True)
-        self.proc.start()
+        saved = {k: os.environ.get(k) for k in _WORKER_ENV}
+        os.environ.update(_WORKER_ENV)  # inherited by the child before it imports torch
+        try:
+            self.proc.start()
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k)
+                else:
+                    os.environ[k] = v
         child.close()
         self.cfg: TrainConfig | None = None
         self.t0 = 0.0
@@ -178,7 +186,8 @@ def _collect(w: _Worker, exp_dir: Path, stopping: bool) -> RunOutcome:
     name, seconds = w.cfg.run_name, time.monotonic() - w.t0
     if stopping:
         return RunOutcome(name, "interrupted", 0, seconds, error=f"worker stopped ({how})")
-    error = f"worker process died ({how}; out of memory?) before reporting"
+    likely = "; out of memory?" if code == -signal.SIGKILL else ""
+    error = f"worker process died ({how}{likely}) before reporting"
     (exp_dir / name).mkdir(parents=True, exist_ok=True)
     (exp_dir / name / ERROR_FILE).write_text(error + "\n")
     return RunOutcome(name, "failed", 0, seconds, error=error)
@@ -192,8 +201,7 @@ def _main_thread() -> bool:
 
 # -- Ray -------------------------------------------------------------------------------------------
 def _ray_run(cfg: TrainConfig, exp_dir: str) -> RunOutcome:
-    """Body of a Ray task: one run."""
-    os.environ.update(_WORKER_ENV)
+    """Body of a Ray task: one run (Ray sets OMP_NUM_THREADS to the task's 1 CPU)."""
     return run_one(cfg, exp_dir)
 
 
@@ -212,7 +220,7 @@ def _run_ray(
 
     started_here = not ray.is_initialized()
     if started_here:
-        kwargs: dict[str, object] = {"runtime_env": {"env_vars": _WORKER_ENV}, "log_to_driver": False}
+        kwargs: dict[str, object] = {"log_to_driver": False}
         if address == "local":
             kwargs.update(address="local", include_dashboard=False, num_cpus=workers)
         else:

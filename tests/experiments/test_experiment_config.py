@@ -1,0 +1,128 @@
+"""Experiment definitions and statistics, without training: the shipped files load, malformed ones get
+an error naming the bad field, the summary's statistics follow their stated rules."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tsrl.exceptions import InvalidConfig
+from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize
+from tsrl.experiments.config import load_experiment, resolve_experiment
+
+REPO = Path(__file__).resolve().parents[2]
+GOOD = """
+obs = ["fs1", "baseline"]
+seeds = [0, 1]
+total_timesteps = 300
+eval_freq = 100
+eval_episodes = 2
+
+[agent]
+learning_starts = 100
+"""
+
+
+@pytest.mark.parametrize(
+    ("name", "runs", "budget"),
+    [("quick-reach", 1, 5_000), ("paper-observations", 25, 15_000), ("action-ablation", 10, 15_000), ("pick-place", 6, 200_000)],
+)  # fmt: skip
+def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
+    monkeypatch.chdir(REPO)
+    exp = load_experiment(resolve_experiment(name))
+    configs = exp.runs()
+    assert exp.name == name and len(configs) == runs
+    assert len({c.run_name for c in configs}) == runs
+    assert all(c.total_timesteps == budget and c.agent.algo == "ddpg" for c in configs)
+
+
+def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    exp = load_experiment(path)
+    assert [(c.obs, c.seed) for c in exp.runs()] == [("fs1", 0), ("baseline", 0), ("fs1", 1), ("baseline", 1)]
+    assert all(c.agent.learning_starts == 100 and c.eval_episodes == 2 for c in exp.runs())
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("seed = [0]", ["unknown key 'seed'", "accepted: description, env, obs"]),
+        ('obs = "fs1"\nobs_extra = 1', ["'obs_extra'"]),
+        ("obs = 3", ["obs must be a non-empty list of strings"]),
+        ("seeds = 3", ["seeds must be a non-empty list of integers"]),
+        ('seeds = [0, "1"]', ["seeds must be a list of integers", "'1'"]),
+        ("seeds = [0, 0]", ["seeds lists 0 more than once"]),
+        ("seeds = [-1]", ["seeds must be integers >= 0; got -1"]),
+        ("total_timesteps = 1.5", ["total_timesteps must be an integer"]),
+        ("eval_freq = 0", ["eval_freq must be > 0"]),
+        ('algo = ["ppo"]', ["unknown algo 'ppo'", "ddpg, td3, sac"]),
+        ('action = ["fly"]', ["unknown action 'fly'", "taskspace"]),
+        ('obs = ["fs9"]', ["obs 'fs9'", "fs1"]),
+        ('env = ["tsrl/Kitchen-v0"]', ["tsrl/Kitchen-v0", "tsrl/UR5eReach-v0"]),
+        ("[agent]\nlr = 0.1", ["[agent]", "'lr'", "learning_rate"]),
+        ("[agent]\ngamma = 2.0", ["[agent] gamma must be in (0, 1]"]),
+        ('[agent]\nalgo = "td3"', ["[agent] algo is a grid axis"]),
+        ("[agent.her]\nstrategy = 'past'", ["[agent]", "unknown her strategy 'past'", "future"]),
+        ("agent = 3", ["agent must be a table"]),
+        ("obs = [", ["not valid TOML"]),
+    ],
+)
+def test_malformed_file_error_names_the_field_and_the_accepted_values(text, expected, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(text + "\n")
+    with pytest.raises(InvalidConfig) as err:
+        load_experiment(path)
+    message = str(err.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    for part in expected:
+        assert part in message
+
+
+def test_unknown_name_lists_the_known_experiments(monkeypatch):
+    monkeypatch.chdir(REPO)
+    with pytest.raises(InvalidConfig, match="unknown experiment 'quick'; known: .*quick-reach"):
+        resolve_experiment("quick")
+    assert resolve_experiment("quick-reach") == Path("experiments/quick-reach.toml")
+    with pytest.raises(InvalidConfig, match="does not exist"):
+        resolve_experiment("no/such.toml")
+
+
+def test_bootstrap_interval_is_seeded_and_brackets_the_mean():
+    values = np.array([0.2, 0.5, 0.6, 0.9, 1.0])
+    mean, low, high = bootstrap_mean_ci(values)
+    assert mean == pytest.approx(0.64) and low < mean < high
+    assert 0.2 <= low and high <= 1.0
+    assert bootstrap_mean_ci(values) == (mean, low, high)  # same data, same interval
+    assert bootstrap_mean_ci(np.array([0.7]))[1:] == (0.7, 0.7)  # one seed: no spread to estimate
+    columns = bootstrap_mean_ci(np.array([[0.0, 1.0], [0.0, 1.0]]))
+    np.testing.assert_array_equal(columns[1], [0.0, 1.0])
+
+
+def _rows(seed: int, success: list[float], obs: str = "fs1") -> list[dict]:
+    return [
+        {"env": "tsrl/UR5eReach-v0", "obs": obs, "action": "taskspace", "algo": "ddpg", "seed": seed,
+         "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
+        for i, s in enumerate(success)
+    ]  # fmt: skip
+
+
+def test_summary_thresholds_count_reaching_seeds_and_average_over_them():
+    rows = (
+        _rows(0, [0.0, 0.6, 0.95, 1.0, 1.0])  # 50% at 500 steps, 90% at 1000
+        + _rows(1, [0.0, 0.2, 0.55, 0.95, 0.9])  # 50% at 1000, 90% at 1500
+        + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never
+        + _rows(0, [0.0, 0.0, 0.0, 0.0, 0.0], obs="baseline")
+    )
+    fs1, baseline = summarize(rows)
+    assert (fs1["obs"], fs1["seeds"], fs1["final_env_steps"], fs1["final_evals"]) == ("fs1", 3, 2000, 3)
+    assert fs1["seeds_reaching_50"] == 2 and fs1["seeds_reaching_90"] == 2
+    assert fs1["env_steps_to_50_mean"] == 750 and fs1["episodes_to_90_mean"] == 25
+    assert fs1["env_steps_to_50_ci_low"] >= 500 and fs1["env_steps_to_50_ci_high"] <= 1000
+    finals = [np.mean([0.95, 1.0, 1.0]), np.mean([0.55, 0.95, 0.9]), np.mean([0.2, 0.3, 0.4])]
+    assert fs1["final_success_mean"] == pytest.approx(np.mean(finals))
+    assert fs1["final_success_ci_low"] <= fs1["final_success_mean"] <= fs1["final_success_ci_high"]
+    assert baseline["seeds_reaching_50"] == 0 and np.isnan(baseline["env_steps_to_50_mean"])
+    assert baseline["wall_time_s_mean"] == 20.0

@@ -1,0 +1,176 @@
+"""Tiny experiments trained for real: the local pool (killed, resumed, a failing run, re-run, report),
+a local Ray instance, and the CLI's error paths.
+
+Each scenario is one test (pytest-xdist may spread tests over processes; a scenario's steps build on
+each other). Runs are 300 env steps: 100 random, then updates every two episodes.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tsrl.agents.checkpoint import latest_checkpoint, read_state
+from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
+from tsrl.experiments.config import load_experiment
+from tsrl.experiments.pool import run_experiment
+
+REPO = Path(__file__).resolve().parents[2]
+TINY = """
+description = "Two presets, two seeds, seconds each."
+obs = ["fs1", "baseline"]
+seeds = [0, 1]
+total_timesteps = 300
+eval_freq = 100
+eval_episodes = 2
+checkpoint_freq = 100
+
+[agent]
+learning_starts = 100
+gradient_steps = 10
+batch_size = 64
+"""
+EXPECTED_ROWS = [(0, 0), (100, 2), (200, 4), (300, 6)]  # (env steps, episodes) of each run's evaluations
+
+
+def tsrl(*args: str, cwd: Path = REPO, timeout: float = 180) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "tsrl.cli", *args],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
+
+
+def progress(run_dir: Path) -> list[tuple[int, int]]:
+    with open(run_dir / "progress.csv", newline="") as f:
+        return [(int(r["env_steps"]), int(r["episodes"])) for r in csv.DictReader(f)]
+
+
+def checkpoint_at(run_dir: Path) -> int:
+    checkpoint = latest_checkpoint(run_dir)
+    return read_state(checkpoint).env_steps if checkpoint else 0
+
+
+def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_and_reports(tmp_path):
+    definition = tmp_path / "tiny.toml"
+    definition.write_text(TINY)
+    exp = load_experiment(definition)
+    exp_dir = tmp_path / "results" / "tiny"
+    fs1_s0, baseline_s0, fs1_s1, baseline_s1 = (exp_dir / c.run_name for c in exp.runs())
+
+    # A folder holding another config under one run's name: that run must fail, alone.
+    other = exp.runs()[3].to_dict() | {"eval_episodes": 3}
+    baseline_s1.mkdir(parents=True)
+    (baseline_s1 / "config.json").write_text(json.dumps(other))
+
+    # 1. `tsrl experiment` killed (SIGKILL, whole process group) once a run has a mid-way checkpoint.
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
+         "--workers", "2", "--no-report"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 120
+    while not any(0 < checkpoint_at(d) < 300 for d in (fs1_s0, baseline_s0, fs1_s1)):
+        assert proc.poll() is None and time.monotonic() < deadline, "no mid-way checkpoint"
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    killed = {d.name: checkpoint_at(d) for d in (fs1_s0, baseline_s0, fs1_s1) if 0 < checkpoint_at(d) < 300}
+    assert killed
+
+    # 2. Running it again resumes the killed runs; the failing run is reported and the others finish.
+    log = io.StringIO()
+    outcomes = {o.run_name: o for o in run_experiment(exp, tmp_path / "results", workers=2, stream=log)}
+    for name, at in killed.items():
+        assert outcomes[name].status == "resumed", (name, at, outcomes[name])
+    for run_dir in (fs1_s0, baseline_s0, fs1_s1):
+        assert progress(run_dir) == EXPECTED_ROWS  # counters continued: each evaluation once, none lost
+        assert checkpoint_at(run_dir) == 300 and outcomes[run_dir.name].env_steps == 300
+        assert not (run_dir / "error.txt").exists()
+    failed = outcomes[baseline_s1.name]
+    assert failed.status == "failed" and "another config" in failed.error and "eval_episodes" in failed.error
+    assert "Traceback" in (baseline_s1 / "error.txt").read_text()
+    assert "failed" in log.getvalue() and "4/4 runs" in log.getvalue()
+    assert json.loads((exp_dir / "experiment.json").read_text())["obs"] == ["fs1", "baseline"]
+
+    # 3. Re-running skips finished runs without starting a worker and leaves their folders untouched.
+    finished = dataclasses.replace(exp, obs=("fs1",))  # the failed baseline run would be retried
+    stamps = {d: (d / "progress.csv").stat().st_mtime_ns for d in (fs1_s0, fs1_s1)}
+    outcomes = {
+        o.run_name: o.status for o in run_experiment(finished, tmp_path / "results", stream=io.StringIO())
+    }
+    assert outcomes == {fs1_s0.name: "skipped", fs1_s1.name: "skipped"}
+    assert stamps == {d: (d / "progress.csv").stat().st_mtime_ns for d in stamps}
+
+    # 4. The report: tidy CSV, summary, learning curves, Markdown embedding them; the failed run named.
+    paths = write_report(exp_dir)
+    assert {p.name for p in paths} == {"results.csv", "summary.csv", "summary.md",
+                                       "learning_curves_episodes.png", "learning_curves_steps.png"}  # fmt: skip
+    with open(exp_dir / "results.csv", newline="") as f:
+        reader = csv.DictReader(f)
+        rows = list(reader)
+    assert tuple(reader.fieldnames) == RESULT_COLUMNS and len(rows) == 3 * len(EXPECTED_ROWS)
+    assert {(r["obs"], r["seed"]) for r in rows} == {("fs1", "0"), ("fs1", "1"), ("baseline", "0")}
+    with open(exp_dir / "summary.csv", newline="") as f:
+        summary = list(csv.DictReader(f))
+    assert [(r["obs"], r["seeds"], r["final_env_steps"]) for r in summary] == [
+        ("baseline", "1", "300"),
+        ("fs1", "2", "300"),
+    ]
+    for png in ("learning_curves_episodes.png", "learning_curves_steps.png"):
+        assert (exp_dir / png).read_bytes()[:4] == b"\x89PNG" and (exp_dir / png).stat().st_size > 10_000
+    md = (exp_dir / "summary.md").read_text()
+    assert "](learning_curves_episodes.png)" in md and "](learning_curves_steps.png)" in md
+    assert "| fs1 | 2 |" in md and "| baseline | 1 |" in md and "bootstrap" in md
+    assert f"Failed runs (error.txt in their folders): {baseline_s1.name}" in md
+
+
+def test_experiment_on_a_local_ray_instance(tmp_path):
+    pytest.importorskip("ray")
+    definition = tmp_path / "tiny-ray.toml"
+    definition.write_text(TINY.replace('["fs1", "baseline"]', '["fs1"]'))
+    result = tsrl(
+        "experiment", str(definition), "--ray", "local", "--workers", "2", "--out-dir", str(tmp_path)
+    )
+    assert result.returncode == 0, result.stderr
+    exp_dir = tmp_path / "tiny-ray"
+    for seed in (0, 1):
+        assert progress(exp_dir / f"tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s{seed}") == EXPECTED_ROWS
+    assert "2/2 runs: 2 trained" in result.stderr
+    assert (exp_dir / "summary.md").is_file() and "wrote" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (
+            ["experiment", "no-such-experiment"],
+            "known: action-ablation, paper-observations, pick-place, quick-reach",
+        ),
+        (["experiment", "quick-reach", "--workers", "0"], "--workers must be >= 1"),
+        (["experiment", "BAD"], "unknown key 'seed'; accepted: description"),
+        (["report", "."], "no run folders in ."),
+    ],
+)
+def test_cli_errors_are_one_line_and_exit_code_2(args, expected, tmp_path):
+    if "BAD" in args:
+        (tmp_path / "bad.toml").write_text("seed = [0]\n")
+        args = [a.replace("BAD", str(tmp_path / "bad.toml")) for a in args]
+    result = tsrl(*args, "--out-dir", str(tmp_path)) if args[0] == "experiment" else tsrl(*args, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], result.stderr
+    assert not any(tmp_path.glob("*/")), "no results folder for bad input"
