@@ -7,6 +7,7 @@ TsrlError, which tsrl.cli turns into one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from pathlib import Path
 from typing import Any
@@ -74,12 +75,17 @@ def _cmd_experiment(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise InvalidConfig(f"--workers must be >= 1; got {args.workers}")
+    if args.ray is not None and importlib.util.find_spec("ray") is None:
+        raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'")
     exp = load_experiment(resolve_experiment(args.experiment))
     from .pool import run_experiment
 
     try:
         outcomes = run_experiment(exp, args.out_dir, workers=args.workers, ray_address=args.ray)
-    except KeyboardInterrupt:
+        interrupted = any(o.status == "interrupted" for o in outcomes)
+    except KeyboardInterrupt:  # a second Ctrl-C
+        interrupted = True
+    if interrupted:
         print("tsrl experiment: interrupted; run it again to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     exp_dir = args.out_dir / exp.name
@@ -89,9 +95,6 @@ def _cmd_experiment(args: argparse.Namespace) -> int:
         for path in write_report(exp_dir):
             print(f"wrote {path}")
     failed = [o for o in outcomes if o.status == "failed"]
-    if any(o.status == "interrupted" for o in outcomes):
-        print("tsrl experiment: interrupted; run it again to resume", file=sys.stderr)
-        return EXIT_INTERRUPTED
     if failed:
         print(
             f"tsrl experiment: {len(failed)} run(s) failed; see error.txt in "

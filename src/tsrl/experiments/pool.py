@@ -20,7 +20,7 @@ import time
 from collections import deque
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from ..agents.config import TrainConfig
 from ..agents.training import read_progress
@@ -144,6 +144,9 @@ def _run_local(
                         outcome = _collect(w, exp_dir, stopping)
                         outcomes[outcome.run_name] = outcome
                         display.finished(outcome)
+                        if outcome.status == "interrupted" and not stopping:  # signalled directly
+                            stopping = True
+                            display.message("a run was interrupted: no new runs start")
                         w.cfg = None
                         if not w.proc.is_alive():
                             pool.remove(w)
@@ -229,36 +232,62 @@ def _run_ray(
             ray.init(**kwargs)
         except (ConnectionError, ValueError, RuntimeError) as err:
             raise InvalidConfig(f"cannot connect to Ray at {address!r}: {err}".splitlines()[0]) from None
+    slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+    task = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
+    pending = deque(todo)
+    running: dict[Any, tuple[TrainConfig, float]] = {}
+    stopping = False
+
+    def on_sigterm(signum: int, frame: object) -> None:
+        raise _Stop
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
     try:
-        slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-        task = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
-        pending = deque(todo)
-        running: dict[object, tuple[TrainConfig, float]] = {}
         while pending or running:
-            while pending and len(running) < slots:
-                cfg = pending.popleft()
-                running[task.remote(cfg, str(exp_dir.resolve()))] = (cfg, time.monotonic())
-                display.started(cfg)
-            done, _ = ray.wait(list(running), num_returns=1, timeout=display.refresh_s)
-            for ref in done:
-                cfg, t0 = running.pop(ref)
-                try:
-                    outcome = ray.get(ref)
-                except ray.exceptions.RayError as err:
-                    error = f"Ray task failed: {err}".splitlines()[0]
-                    (exp_dir / cfg.run_name).mkdir(parents=True, exist_ok=True)
-                    (exp_dir / cfg.run_name / ERROR_FILE).write_text(str(err) + "\n")
-                    outcome = RunOutcome(cfg.run_name, "failed", 0, time.monotonic() - t0, error=error)
-                outcomes[cfg.run_name] = outcome
-                display.finished(outcome)
-            display.refresh([cfg for cfg, _ in running.values()])
-    except KeyboardInterrupt:
-        for ref in running:
-            ray.cancel(ref, force=True)
-        raise
+            try:
+                while pending and not stopping and len(running) < slots:
+                    cfg = pending.popleft()
+                    running[task.remote(cfg, str(exp_dir.resolve()))] = (cfg, time.monotonic())
+                    display.started(cfg)
+                if not running:
+                    break
+                done, _ = ray.wait(list(running), num_returns=1, timeout=display.refresh_s)
+                for ref in done:
+                    cfg, t0 = running.pop(ref)
+                    try:
+                        outcome = ray.get(ref)
+                    except ray.exceptions.TaskCancelledError:
+                        outcome = RunOutcome(
+                            cfg.run_name, "interrupted", 0, time.monotonic() - t0, error="cancelled"
+                        )
+                    except ray.exceptions.RayError as err:
+                        error = f"Ray task failed: {err}".splitlines()[0]
+                        (exp_dir / cfg.run_name).mkdir(parents=True, exist_ok=True)
+                        (exp_dir / cfg.run_name / ERROR_FILE).write_text(str(err) + "\n")
+                        outcome = RunOutcome(cfg.run_name, "failed", 0, time.monotonic() - t0, error=error)
+                    outcomes[cfg.run_name] = outcome
+                    display.finished(outcome)
+                    stopping = stopping or outcome.status == "interrupted"  # a worker got a signal
+                display.refresh([cfg for cfg, _ in running.values()])
+            except (KeyboardInterrupt, _Stop):
+                if stopping:  # second interrupt: stop now
+                    for ref in running:
+                        ray.cancel(ref, force=True)
+                    raise KeyboardInterrupt from None
+                stopping = True
+                display.message(
+                    f"stopping: {len(running)} running run(s) save a checkpoint and stop; "
+                    f"{len(pending)} not started; Ctrl-C again to stop at once"
+                )
+                for ref in running:
+                    ray.cancel(ref)  # KeyboardInterrupt in the task: training checkpoints and stops
     finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
         if started_here:
             ray.shutdown()
+    for cfg in pending:
+        outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
 
 
 # -- progress display ------------------------------------------------------------------------------
@@ -313,9 +342,11 @@ class Progress:
     def close(self) -> None:
         self._clear()
         c = self.counts
+        not_started = f", {self.total - self.done} not started" if self.done < self.total else ""
         self.message(
             f"{self.done}/{self.total} runs: {c['trained']} trained, {c['resumed']} resumed, "
             f"{c['skipped']} skipped (finished before), {c['failed']} failed, {c['interrupted']} interrupted"
+            + not_started
         )
 
     def _counts(self) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import signal
 import time
 import traceback
 from dataclasses import dataclass
@@ -99,7 +100,8 @@ def run_one(cfg: TrainConfig, exp_dir: Path | str) -> RunOutcome:
                     status = "resumed"
         error = ""
     except TrainingInterrupted as stop:
-        status, error = "interrupted", str(stop)
+        name = signal.Signals(stop.signum).name
+        status, error = "interrupted", f"{name}: stopped at {stop.env_steps} env steps, checkpoint saved"
     except Exception as err:  # noqa: BLE001  (reported in the outcome and error.txt; the others go on)
         run_dir.mkdir(parents=True, exist_ok=True)
         (run_dir / ERROR_FILE).write_text(traceback.format_exc())
