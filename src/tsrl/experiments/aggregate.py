@@ -28,7 +28,7 @@ import numpy as np
 from ..agents.config import TrainConfig
 from ..agents.training import CONFIG, load_config, read_progress
 from ..exceptions import InvalidConfig, TsrlError
-from .config import EXPERIMENT_FILE
+from .config import EXPERIMENT_FILE, Key, config_labels
 from .runner import ERROR_FILE
 
 RESULT_COLUMNS: tuple[str, ...] = (
@@ -51,8 +51,6 @@ SUMMARY_CSV = "summary.csv"
 SUMMARY_MD = "summary.md"
 CURVES_EPISODES = "learning_curves_episodes.png"
 CURVES_STEPS = "learning_curves_steps.png"
-
-Key = tuple[str, str, str, str]  # env, obs, action, algo
 
 
 def find_runs(results_dir: Path) -> list[Path]:
@@ -304,12 +302,6 @@ def markdown_summary(
         "",
     ]
     return "\n".join(lines)
-
-
-def config_labels(keys: list[Key]) -> list[str]:
-    """Short labels naming only what differs between configurations (obs alone if nothing does)."""
-    varying = [i for i in range(4) if len({k[i] for k in keys}) > 1] or [1]
-    return [" / ".join(k[i] for i in varying) for k in keys]
 
 
 def _interval(row: dict[str, Any], stat: str, fmt: str) -> str:

@@ -23,6 +23,9 @@ SUFFIX = ".toml"
 #: The validated ExperimentConfig, written into the experiment's results folder by each run of it.
 EXPERIMENT_FILE = "experiment.json"
 
+Key = tuple[str, str, str, str]
+"""A configuration: (env, obs, action, algo); its runs differ by seed."""
+
 
 @dataclass(frozen=True)
 class ExperimentConfig:
@@ -209,3 +212,9 @@ def resolve_experiment(name_or_file: str) -> Path:
         f"unknown experiment {name_or_file!r}; known: {', '.join(known) or 'none'} "
         f"(in {', '.join(map(str, folders))}), or pass the path of a .toml file"
     )
+
+
+def config_labels(keys: list[Key]) -> list[str]:
+    """Short labels naming only what differs between configurations (obs alone if nothing does)."""
+    varying = [i for i in range(4) if len({k[i] for k in keys}) > 1] or [1]
+    return [" / ".join(k[i] for i in varying) for k in keys]

@@ -6,7 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from .aggregate import Curve, config_labels
+from .aggregate import Curve
+from .config import config_labels
 
 
 def plot_curves(curves: list[Curve], x: Literal["episodes", "env_steps"], out: Path, title: str) -> Path:

@@ -1,11 +1,11 @@
 """Runs an experiment's grid: on local worker processes (default) or on a Ray cluster.
 
-Local: `workers` spawned processes (default: one per core), each with one torch thread, each running
-one run at a time. A run that crashes its process (segfault, out of memory) is reported as failed, the
-process replaced, and the others go on. Ctrl-C (or SIGTERM) stops launching runs and asks the running ones to checkpoint
-and stop; a second Ctrl-C stops at once. Ray (`pip install 'tsrl[ray]'`): one task per run with one
-CPU, on the cluster at `address` or on a local instance (`"local"`); the results folder must be on a
-file system every node sees at the same path.
+Local: `workers` spawned processes (default: one per available core), each with one torch thread,
+each running one run at a time. A run that crashes its process (segfault, out of memory) is reported
+as failed, the process replaced, and the others go on. Ctrl-C (or SIGTERM) stops launching runs and
+asks the running ones to checkpoint and stop; a second Ctrl-C stops at once. Ray (`pip install
+'tsrl[ray]'`): one task per run with one CPU, on the cluster at `address` or on a local instance
+(`"local"`); the results folder must be on a file system every node sees at the same path.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import json
 import math
 import multiprocessing as mp
 import os
+import shutil
 import signal
 import sys
 import time
@@ -25,7 +26,7 @@ from typing import Any, TextIO
 from ..agents.config import TrainConfig
 from ..agents.training import read_progress
 from ..exceptions import InvalidConfig
-from .config import EXPERIMENT_FILE, ExperimentConfig
+from .config import EXPERIMENT_FILE, ExperimentConfig, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
 #: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
@@ -43,16 +44,16 @@ def run_experiment(
 
     Finished runs are skipped without starting a worker; partial ones resume from their checkpoints.
     """
+    if workers is not None and workers < 1:
+        raise InvalidConfig(f"--workers must be >= 1; got {workers}")
     exp_dir = Path(out_dir) / exp.name
     exp_dir.mkdir(parents=True, exist_ok=True)
     tmp = exp_dir / f".{EXPERIMENT_FILE}.tmp"
     tmp.write_text(json.dumps(exp.to_dict(), indent=2) + "\n")
     os.replace(tmp, exp_dir / EXPERIMENT_FILE)
-    if workers is not None and workers < 1:
-        raise InvalidConfig(f"--workers must be >= 1; got {workers}")
 
     runs = exp.runs()
-    display = Progress(len(runs), exp_dir, stream if stream is not None else sys.stderr)
+    display = Progress(runs, exp_dir, stream if stream is not None else sys.stderr)
     outcomes: dict[str, RunOutcome] = {}
     todo = []
     try:
@@ -68,7 +69,7 @@ def run_experiment(
             else:
                 todo.append(cfg)
         if todo and ray_address is None:
-            _run_local(todo, exp_dir, workers or os.cpu_count() or 1, display, outcomes)
+            _run_local(todo, exp_dir, workers or len(os.sched_getaffinity(0)), display, outcomes)
         elif todo:
             _run_ray(todo, exp_dir, ray_address, workers, display, outcomes)
     finally:
@@ -132,8 +133,9 @@ def _run_local(
             try:
                 for w in pool:
                     if w.cfg is None and pending and not stopping:
-                        w.give(pending.popleft(), exp_dir)
-                        display.started(w.cfg)  # type: ignore[arg-type]
+                        cfg = pending.popleft()
+                        w.give(cfg, exp_dir)
+                        display.started(cfg)
                 for w in [w for w in pool if w.cfg is None]:
                     w.conn.send(None)  # nothing left for it
                     w.conn.close()
@@ -297,14 +299,16 @@ class Progress:
 
     refresh_s = 2.0
 
-    def __init__(self, total: int, exp_dir: Path, stream: TextIO):
-        self.total = total
+    def __init__(self, runs: list[TrainConfig], exp_dir: Path, stream: TextIO):
+        self.total = len(runs)
+        keys = [(c.env_id, c.obs, c.action, c.agent.algo) for c in runs]
+        self.labels = {c.run_name: f"{k} s{c.seed}" for c, k in zip(runs, config_labels(keys), strict=True)}
         self.exp_dir = exp_dir
         self.stream = stream
         self.tty = stream.isatty()
         self.counts = {"trained": 0, "resumed": 0, "skipped": 0, "failed": 0, "interrupted": 0}
         self.running: list[TrainConfig] = []
-        self.message(f"experiment {exp_dir.name}: {total} runs -> {exp_dir}")
+        self.message(f"experiment {exp_dir.name}: {self.total} runs -> {exp_dir}")
 
     @property
     def done(self) -> int:
@@ -363,12 +367,9 @@ class Progress:
             for cfg in self.running:
                 rows = read_progress(self.exp_dir / cfg.run_name)
                 at = int(rows[-1]["env_steps"]) if rows else 0
-                steps.append(
-                    f"{cfg.obs}/{cfg.action}/{cfg.agent.algo}/s{cfg.seed} {at}/{cfg.total_timesteps}"
-                )
+                steps.append(f"{self.labels[cfg.run_name]}: {at}/{cfg.total_timesteps}")
             text += " | " + ", ".join(steps)
-        columns = os.get_terminal_size(self.stream.fileno()).columns if self.tty else 200
-        self.stream.write("\r\033[K" + text[: columns - 1])
+        self.stream.write("\r\033[K" + text[: shutil.get_terminal_size().columns - 1])
         self.stream.flush()
 
     def _clear(self) -> None:
