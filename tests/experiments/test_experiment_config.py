@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
-from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize
+from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize, variants
 from tsrl.experiments.config import load_experiment, resolve_experiment
 
 REPO = Path(__file__).resolve().parents[2]
@@ -103,7 +104,7 @@ def test_bootstrap_interval_is_seeded_and_brackets_the_mean():
 
 def _rows(seed: int, success: list[float], obs: str = "fs1") -> list[dict]:
     return [
-        {"env": "tsrl/UR5eReach-v0", "obs": obs, "action": "taskspace", "algo": "ddpg", "seed": seed,
+        {"env": "tsrl/UR5eReach-v0", "obs": obs, "action": "taskspace", "algo": "ddpg", "variant": "", "seed": seed,
          "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
         for i, s in enumerate(success)
     ]  # fmt: skip
@@ -126,3 +127,9 @@ def test_summary_thresholds_count_reaching_seeds_and_average_over_them():
     assert fs1["final_success_ci_low"] <= fs1["final_success_mean"] <= fs1["final_success_ci_high"]
     assert baseline["seeds_reaching_50"] == 0 and np.isnan(baseline["env_steps_to_50_mean"])
     assert baseline["wall_time_s_mean"] == 20.0
+
+
+def test_variants_name_only_the_settings_that_differ():
+    plain = TrainConfig(agent=AgentConfig(her=HerConfig(relabel="plain")), total_timesteps=99)
+    assert variants([TrainConfig(seed=0), TrainConfig(seed=1, checkpoint_freq=7)]) == ["", ""]
+    assert variants([TrainConfig(), plain]) == ["agent.her.relabel=feature", "agent.her.relabel=plain"]

@@ -36,6 +36,7 @@ RESULT_COLUMNS: tuple[str, ...] = (
     "obs",
     "action",
     "algo",
+    "variant",
     "seed",
     "env_steps",
     "episodes",
@@ -67,17 +68,38 @@ def find_runs(results_dir: Path) -> list[Path]:
     return runs
 
 
-def config_key(cfg: TrainConfig) -> Key:
-    return (cfg.env_id, cfg.obs, cfg.action, cfg.agent.algo)
+#: Config fields that are grid axes, or that do not change what a run learns: not part of a variant.
+_NOT_VARIANT = {
+    "env_id",
+    "obs",
+    "action",
+    "agent.algo",
+    "seed",
+    "total_timesteps",
+    "checkpoint_freq",
+    "torch_threads",
+}
+
+
+def variants(cfgs: list[TrainConfig]) -> list[str]:
+    """Per config, the settings (beyond env, obs, action, algo, seed) that differ among `cfgs`, as
+    `field=value, ...`; empty when all share them (as the runs of one experiment do)."""
+    flat = [{k: v for k, v in _flatten(c.to_dict()).items() if k not in _NOT_VARIANT} for c in cfgs]
+    fields = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
+    return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
+
+
+def row_key(row: dict[str, Any]) -> Key:
+    return (row["env"], row["obs"], row["action"], row["algo"], row["variant"])
 
 
 def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
     """Tidy rows, one per run and evaluation, with RESULT_COLUMNS."""
+    cfgs = [load_config(d) for d in run_dirs]
     rows = []
     seen: dict[tuple[Key, int], Path] = {}
-    for run_dir in run_dirs:
-        cfg = load_config(run_dir)
-        key = config_key(cfg)
+    for run_dir, cfg, variant in zip(run_dirs, cfgs, variants(cfgs), strict=True):
+        key = (cfg.env_id, cfg.obs, cfg.action, cfg.agent.algo, variant)
         if (key, cfg.seed) in seen:
             raise InvalidConfig(
                 f"{seen[key, cfg.seed].name} and {run_dir.name} are the same configuration and seed; "
@@ -91,6 +113,7 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
                     "obs": cfg.obs,
                     "action": cfg.action,
                     "algo": cfg.agent.algo,
+                    "variant": variant,
                     "seed": cfg.seed,
                     "env_steps": int(r["env_steps"]),
                     "episodes": int(r["episodes"]),
@@ -143,7 +166,7 @@ def curves(rows: list[dict[str, Any]]) -> list[Curve]:
     """One Curve per configuration, in the order configurations first appear in `rows`."""
     by_run: dict[Key, dict[int, dict[int, dict[str, Any]]]] = defaultdict(lambda: defaultdict(dict))
     for r in rows:
-        by_run[(r["env"], r["obs"], r["action"], r["algo"])][r["seed"]][r["env_steps"]] = r
+        by_run[row_key(r)][r["seed"]][r["env_steps"]] = r
     out = []
     for key, runs in by_run.items():
         seeds = tuple(sorted(runs))
@@ -172,10 +195,10 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One summary row per configuration (see the module docstring for each statistic)."""
     per_run: dict[tuple[Key, int], list[dict[str, Any]]] = defaultdict(list)
     for r in rows:
-        per_run[(r["env"], r["obs"], r["action"], r["algo"]), r["seed"]].append(r)
+        per_run[row_key(r), r["seed"]].append(r)
     summary = []
     for curve in curves(rows):
-        env, obs, action, algo = curve.key
+        env, obs, action, algo, variant = curve.key
         runs = [sorted(per_run[curve.key, s], key=lambda r: r["env_steps"]) for s in curve.seeds]
         last = curve.success[:, -FINAL_EVALS:]
         final, final_lo, final_hi = bootstrap_mean_ci(last.mean(axis=1))
@@ -184,6 +207,7 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "obs": obs,
             "action": action,
             "algo": algo,
+            "variant": variant,
             "seeds": len(curve.seeds),
             "final_env_steps": int(curve.env_steps[-1]),
             "final_evals": last.shape[1],
@@ -228,7 +252,7 @@ def write_report(results_dir: Path | str) -> list[Path]:
         raise InvalidConfig(str(err)) from None
     if not rows:
         raise InvalidConfig(f"no evaluations yet in the runs of {results_dir}")
-    rows.sort(key=lambda r: (r["env"], r["obs"], r["action"], r["algo"], r["seed"], r["env_steps"]))
+    rows.sort(key=lambda r: (*row_key(r), r["seed"], r["env_steps"]))
     summary = summarize(rows)
     all_curves = curves(rows)
     title = _experiment_name(results_dir)
@@ -245,62 +269,53 @@ def write_report(results_dir: Path | str) -> list[Path]:
     return paths
 
 
+_HOW_TO_READ = (
+    "Mean across seeds [95% percentile-bootstrap interval: {resamples:,} resamples of the seeds, "
+    "numpy seed {seed}]. **Final success**: per seed, the mean eval success rate of the last {final} "
+    "evaluations that every seed of the configuration reached, the last of them at *at env steps* (a seed "
+    "still running holds its configuration back). **Episodes / env steps to 50% and 90%**: per seed, the "
+    "first evaluation at or above the threshold. `k/n`: k of the n seeds reached it within their budget; "
+    "the mean and interval are over those k only: seeds that never reached it are left out, not counted "
+    "at the budget, so when k < n the mean is optimistic (— when none did). With one seed, or one "
+    "reaching seed, the interval is that value. Wall time: training plus evaluations, per run."
+)
+
+
 def markdown_summary(
     results_dir: Path, summary: list[dict[str, Any]], failed: list[str], empty: list[str]
 ) -> str:
     """summary.md: the learning curves, the table, and how to read it."""
-    name = _experiment_name(results_dir)
     description = _experiment_info(results_dir).get("description", "")
-    labels = config_labels([(r["env"], r["obs"], r["action"], r["algo"]) for r in summary])
-    lines = [f"# {name}", ""]
-    if description:
-        lines += [description, ""]
+    header = ["configuration", "seeds", "final success", "at env steps"]
+    header += [f"{u} to {round(t * 100)}%" for t in THRESHOLDS for u in ("episodes", "env steps")]
+    header += ["wall time [s]"]
+    lines = [f"# {_experiment_name(results_dir)}", ""] + ([description, ""] if description else [])
     lines += [
         f"![success rate vs episodes]({CURVES_EPISODES})",
         "",
         f"![success rate vs env steps]({CURVES_STEPS})",
-        "",
-        (
-            "| configuration | seeds | final success | episodes to 50% | env steps to 50% "
-            "| episodes to 90% | env steps to 90% | wall time [s] |"
-        ),
-        "| --- | ---: | --- | --- | --- | --- | --- | ---: |",
     ]
-    for r, label in zip(summary, labels, strict=True):
-        cells = [label, str(r["seeds"]), _interval(r, "final_success", ".2f")]
+    lines += ["", "| " + " | ".join(header) + " |", "| --- | ---: | --- | ---: |" + " --- |" * 4 + " ---: |"]
+    for r, label in zip(summary, config_labels([row_key(r) for r in summary]), strict=True):
+        cells = [label, str(r["seeds"]), _interval(r, "final_success", ".2f"), str(r["final_env_steps"])]
         for pct in (round(t * 100) for t in THRESHOLDS):
-            for unit in ("episodes", "env_steps"):
-                cells.append(
-                    f"{r[f'seeds_reaching_{pct}']}/{r['seeds']}: " + _interval(r, f"{unit}_to_{pct}", ".0f")
-                )
+            reached = f"{r[f'seeds_reaching_{pct}']}/{r['seeds']}: "
+            cells += [reached + _interval(r, f"{unit}_to_{pct}", ".0f") for unit in ("episodes", "env_steps")]
         cells.append(f"{r['wall_time_s_mean']:.0f}")
         lines.append("| " + " | ".join(cells) + " |")
     lines += [
         "",
-        (
-            "Mean across seeds [95% percentile-bootstrap interval, "
-            f"{BOOTSTRAP_RESAMPLES:,} resamples of the seeds, seed {BOOTSTRAP_SEED}]. "
-            f"**Final success**: per seed, the mean eval success rate of the last {FINAL_EVALS} evaluations "
-            "that every seed of the configuration reached (up to the env steps in summary.csv's "
-            "`final_env_steps`). **Episodes / env steps to 50% and 90%**: per seed, the first evaluation at or "
-            "above the threshold; `k/n` seeds reached it within the budget, and the mean and interval are over "
-            "those k only (seeds that never reached it are left out, so the mean is optimistic when k < n; "
-            "— when none did). With one seed (or one reaching seed) the interval is that value. Wall time: "
-            "training plus evaluations, per run."
-        ),
+        _HOW_TO_READ.format(resamples=BOOTSTRAP_RESAMPLES, seed=BOOTSTRAP_SEED, final=FINAL_EVALS),
         "",
     ]
     if failed:
         lines += [f"Failed runs (error.txt in their folders): {', '.join(failed)}.", ""]
     if empty:
         lines += [f"Runs without evaluations (left out): {', '.join(empty)}.", ""]
-    lines += [
-        (
-            f"Data: [{RESULTS_CSV}]({RESULTS_CSV}) (one row per run and evaluation), "
-            f"[{SUMMARY_CSV}]({SUMMARY_CSV}). Regenerate with `tsrl report {results_dir}`."
-        ),
-        "",
-    ]
+    lines.append(
+        f"Data: [{RESULTS_CSV}]({RESULTS_CSV}) (one row per run and evaluation), [{SUMMARY_CSV}]({SUMMARY_CSV}). "
+        f"Regenerate with `tsrl report {results_dir}`.\n"
+    )
     return "\n".join(lines)
 
 
@@ -327,3 +342,13 @@ def _experiment_info(results_dir: Path) -> dict[str, Any]:
 
 def _experiment_name(results_dir: Path) -> str:
     return _experiment_info(results_dir).get("name") or results_dir.resolve().name
+
+
+def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out |= _flatten(v, f"{prefix}{k}.")
+        else:
+            out[prefix + k] = v
+    return out

@@ -23,8 +23,9 @@ SUFFIX = ".toml"
 #: The validated ExperimentConfig, written into the experiment's results folder by each run of it.
 EXPERIMENT_FILE = "experiment.json"
 
-Key = tuple[str, str, str, str]
-"""A configuration: (env, obs, action, algo); its runs differ by seed."""
+Key = tuple[str, str, str, str, str]
+"""A configuration: (env, obs, action, algo, variant); its runs differ by seed. The variant names
+other settings that differ between runs of a results folder (empty within one experiment)."""
 
 
 @dataclass(frozen=True)
@@ -216,5 +217,5 @@ def resolve_experiment(name_or_file: str) -> Path:
 
 def config_labels(keys: list[Key]) -> list[str]:
     """Short labels naming only what differs between configurations (obs alone if nothing does)."""
-    varying = [i for i in range(4) if len({k[i] for k in keys}) > 1] or [1]
+    varying = [i for i in range(len(keys[0])) if len({k[i] for k in keys}) > 1] or [1]
     return [" / ".join(k[i] for i in varying) for k in keys]

@@ -301,7 +301,7 @@ class Progress:
 
     def __init__(self, runs: list[TrainConfig], exp_dir: Path, stream: TextIO):
         self.total = len(runs)
-        keys = [(c.env_id, c.obs, c.action, c.agent.algo) for c in runs]
+        keys = [(c.env_id, c.obs, c.action, c.agent.algo, "") for c in runs]
         self.labels = {c.run_name: f"{k} s{c.seed}" for c, k in zip(runs, config_labels(keys), strict=True)}
         self.exp_dir = exp_dir
         self.stream = stream
