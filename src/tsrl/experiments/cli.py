@@ -35,6 +35,7 @@ def add_experiment_commands(commands: Any) -> None:
         "--workers",
         type=int,
         default=None,
+        metavar="N",
         help="runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray)",
     )
     p_exp.add_argument(
@@ -60,7 +61,7 @@ def add_experiment_commands(commands: Any) -> None:
         help="aggregate an experiment's runs: results.csv, summary.csv, summary.md, learning curves",
         description="Aggregates the run folders in RESULTS_DIR (e.g. results/quick-reach) into results.csv "
         "(one row per run and evaluation), summary.csv and summary.md (per configuration: episodes and env "
-        "steps to 50%% and 90%% success, final success, 95%% bootstrap intervals across seeds) and "
+        "steps to 50% and 90% success, final success, 95% bootstrap intervals across seeds) and "
         "learning_curves_episodes.png / learning_curves_steps.png.",
     )
     p_report.add_argument(
