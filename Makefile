@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 # Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
 export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
 
-.PHONY: install demo test lint bench
+.PHONY: install demo quick-reach test lint bench
 
 install: $(VENV)/.installed
 
@@ -14,6 +14,9 @@ $(VENV)/.installed: pyproject.toml scripts/setup.sh
 
 demo: install  ## renders the UR5e reach scene at home and a few poses to results/demo/*.png
 	$(BIN)/tsrl demo --out-dir results/demo
+
+quick-reach: install  ## short real DDPG+HER training on tsrl/UR5eReach-v0 (fs1), report + learning curves in results/quick-reach/
+	$(BIN)/tsrl experiment quick-reach
 
 test: install  ## the test suite, without the slow checks
 	$(BIN)/python -m pytest -m "not slow" -n auto --durations=10
