@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 # Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
 export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
 
-.PHONY: install demo quick-reach test lint bench
+.PHONY: install demo render-demo test lint bench
 
 install: $(VENV)/.installed
 
@@ -12,14 +12,18 @@ $(VENV)/.installed: pyproject.toml scripts/setup.sh
 	bash scripts/setup.sh dev
 	touch $@
 
-demo: install  ## renders the UR5e reach scene at home and a few poses to results/demo/*.png
-	$(BIN)/tsrl demo --out-dir results/demo
-
-quick-reach: install  ## short real DDPG+HER training on tsrl/UR5eReach-v0 (fs1), report + learning curves in results/quick-reach/
+demo: install  ## the main job: a short real DDPG+HER training on tsrl/UR5eReach-v0 (fs1), report + learning curves in results/quick-reach/
 	$(BIN)/tsrl experiment quick-reach
+
+render-demo: install  ## renders the UR5e reach scene at home and a few poses to results/demo/*.png
+	$(BIN)/tsrl demo --out-dir results/demo
 
 test: install  ## the test suite, without the slow checks
 	$(BIN)/python -m pytest -m "not slow" -n auto --durations=10
 
 lint:
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning: benchmarks/learning.py
+	$(BIN)/python -m pip install -q -e ".[bench]"
+	cd benchmarks && ../$(BIN)/python taskmaps.py && ../$(BIN)/python ik.py && ../$(BIN)/python env_step.py
