@@ -45,16 +45,16 @@ class RunState:
     """Part of wall_time_s spent in evaluations."""
 
 
-def checkpoint_dirs(run_dir: Path) -> list[Path]:
+def checkpoint_dirs(run_dir: Path | str) -> list[Path]:
     """Complete checkpoints of a run, oldest first."""
-    root = run_dir / CHECKPOINTS
+    root = Path(run_dir) / CHECKPOINTS
     if not root.is_dir():
         return []
     dirs = [p for p in root.glob("step_*") if p.is_dir() and (p / STATE).is_file()]
     return sorted(dirs, key=lambda p: int(p.name.removeprefix("step_")))
 
 
-def latest_checkpoint(run_dir: Path) -> Path | None:
+def latest_checkpoint(run_dir: Path | str) -> Path | None:
     dirs = checkpoint_dirs(run_dir)
     return dirs[-1] if dirs else None
 
