@@ -15,7 +15,7 @@ import pytest
 
 #: Seconds-long training: 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
 TINY = [
-    "--total-timesteps", "300", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
+    "--total-timesteps", "200", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
     "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress",
 ]  # fmt: skip
 RUN_NAME = "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0"
@@ -73,14 +73,14 @@ def test_train_writes_a_self_describing_run_folder(trained_run):
         and config["obs"] == "fs1"
         and config["agent"]["algo"] == "ddpg"
     )
-    assert config["total_timesteps"] == 300 and config["agent"]["her"]["relabel"] == "feature"
-    assert steps_column(trained_run) == [(0, 0), (100, 2), (200, 4), (300, 6)]
+    assert config["total_timesteps"] == 200 and config["agent"]["her"]["relabel"] == "feature"
+    assert steps_column(trained_run) == [(0, 0), (100, 2), (200, 4)]
     with open(trained_run / "progress.csv", newline="") as f:
         assert {"env_steps", "episodes", "wall_time_s", "eval_success_rate"} <= set(
             csv.DictReader(f).fieldnames
         )
     assert list((trained_run / "tb").glob("events.out.tfevents*"))
-    assert checkpoint_steps(trained_run) == [300]
+    assert checkpoint_steps(trained_run) == [200]
     assert (trained_run / "learning_curve.png").is_file()
 
 

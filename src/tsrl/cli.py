@@ -209,12 +209,14 @@ def _latest(run_dir: Path) -> Path:
 
 def evaluate_run(run_dir: Path, episodes: int, seed: int | None = None) -> dict[str, Any]:
     """Success rate and mean final distance of a run's latest checkpoint over `episodes` seeded episodes."""
-    from .agents import ALGOS, load_config
+    from .agents.config import load_config
+
+    cfg = load_config(run_dir)  # bad input fails before torch loads
+    checkpoint = _latest(run_dir)
+    from .agents import ALGOS
     from .agents.checkpoint import load_policy, read_state
     from .agents.evaluation import Evaluator, eval_seeds
 
-    cfg = load_config(run_dir)
-    checkpoint = _latest(run_dir)
     model, normalizer = load_policy(checkpoint, ALGOS[cfg.agent.algo])
     evaluator = Evaluator(cfg, eval_seeds(cfg.seed if seed is None else seed, episodes))
     try:
@@ -228,12 +230,15 @@ def render_run(
     run_dir: Path, out: Path, episodes: int = 2, seed: int | None = None, size: tuple[int, int] = (480, 480)
 ) -> Path:
     """Writes a video of the run's latest policy (deterministic) off-screen; mp4, else GIF. Returns its path."""
-    from .agents import ALGOS, load_config, make_env
+    from .agents.config import load_config
+
+    cfg = load_config(run_dir)  # bad input fails before torch loads
+    checkpoint = _latest(run_dir)
+    from .agents import ALGOS, make_env
     from .agents.checkpoint import load_policy
     from .agents.evaluation import eval_seeds
 
-    cfg = load_config(run_dir)
-    model, normalizer = load_policy(_latest(run_dir), ALGOS[cfg.agent.algo])
+    model, normalizer = load_policy(checkpoint, ALGOS[cfg.agent.algo])
     kwargs = {"width": size[0], "height": size[1]} if cfg.is_tsrl_env else {}
     env = make_env(cfg, render_mode="rgb_array", **kwargs)
     frames = []
