@@ -8,6 +8,7 @@ fails an assertion in `gymnasium_robotics.utils.mujoco_utils`. The patch gives t
 
 from __future__ import annotations
 
+import sys
 import types
 
 import gymnasium as gym
@@ -30,8 +31,11 @@ class _MujocoWithIntJointTypes(types.ModuleType):
 
 def register_fetch_envs() -> None:
     """Registers the Gymnasium-Robotics environments, patched to run on mujoco 4."""
-    import gymnasium_robotics
-    from gymnasium_robotics.utils import mujoco_utils
-
-    mujoco_utils.mujoco = _MujocoWithIntJointTypes("mujoco")
+    try:
+        import gymnasium_robotics
+        from gymnasium_robotics.utils import mujoco_utils
+    except ImportError:
+        sys.exit('FetchReach needs gymnasium-robotics 1.4.2: pip install -e ".[bench]" (or make bench)')
+    if int(mujoco.__version__.split(".")[0]) >= 4:
+        mujoco_utils.mujoco = _MujocoWithIntJointTypes("mujoco")
     gym.register_envs(gymnasium_robotics)

@@ -10,17 +10,9 @@ Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/l
 one is reused, an interrupted one resumed, so the script can be stopped and started again. Delete the
 folder to measure afresh. Timings assume no more parallel --jobs than free cores.
 
-FetchReach needs Gymnasium-Robotics, which tsrl does not depend on. Install it for the benchmark only,
-without touching tsrl's environment, e.g.
-
-    pip install --target /tmp/fetch-deps --no-deps gymnasium-robotics==1.4.2 pettingzoo
-    PYTHONPATH=/tmp/fetch-deps python benchmarks/learning.py fetch
-
-Gymnasium-Robotics 1.4.2 does not run on mujoco 4: `gymnasium_robotics.utils.mujoco_utils` compares
-`model.jnt_type[i]` (a numpy integer) with `mujoco.mjtJoint` members, which mujoco 4 made enum objects
-that no longer compare equal to integers, so FetchReach-v4.reset() fails an assertion. `_patch_fetch`
-below gives that one module a `mujoco` whose `mjtJoint` members are plain integers; everything else
-is the real mujoco. The patch lives here only; tsrl itself runs on mujoco 4 unpatched.
+FetchReach needs Gymnasium-Robotics 1.4.2, which tsrl does not depend on: `pip install -e ".[bench]"`.
+It does not run on mujoco 4 unpatched; `fetch_compat.register_fetch_envs` (beside this file) applies
+the small patch, in the benchmarks only.
 """
 
 from __future__ import annotations
@@ -28,8 +20,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
-import types
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -37,42 +27,14 @@ import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from fetch_compat import register_fetch_envs
+
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
 from tsrl.agents.checkpoint import latest_checkpoint, read_state
 from tsrl.agents.config import NATIVE
 from tsrl.agents.plotting import mean_ci95
 
 THRESHOLDS = (0.5, 0.9, 0.95)
-
-
-def _patch_fetch() -> None:
-    """Registers Gymnasium-Robotics' envs, with the mujoco 4 fix described in the module docstring."""
-    import gymnasium as gym
-    import mujoco
-
-    try:
-        import gymnasium_robotics
-        from gymnasium_robotics.utils import mujoco_utils
-    except ImportError:
-        sys.exit(
-            "FetchReach needs gymnasium-robotics: pip install --target /tmp/fetch-deps --no-deps "
-            "gymnasium-robotics==1.4.2 pettingzoo, then run with PYTHONPATH=/tmp/fetch-deps"
-        )
-
-    class _Mujoco4Compat(types.ModuleType):
-        mjtJoint = types.SimpleNamespace(
-            **{
-                n: int(getattr(mujoco.mjtJoint, n))
-                for n in ("mjJNT_FREE", "mjJNT_BALL", "mjJNT_SLIDE", "mjJNT_HINGE")
-            }
-        )
-
-        def __getattr__(self, name: str):
-            return getattr(mujoco, name)
-
-    if int(mujoco.__version__.split(".")[0]) >= 4:
-        mujoco_utils.mujoco = _Mujoco4Compat("mujoco")
-    gym.register_envs(gymnasium_robotics)
 
 
 def configs(
@@ -104,7 +66,7 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
     """
     cfg, out_dir = args
     if cfg.env_id.startswith("Fetch"):
-        _patch_fetch()
+        register_fetch_envs()
     from tsrl.agents.training import resume, train
 
     parent = out_dir / ("fetch" if cfg.env_id.startswith("Fetch") else "reach")
