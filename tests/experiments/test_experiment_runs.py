@@ -141,15 +141,25 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
 def test_experiment_on_a_local_ray_instance(tmp_path):
     pytest.importorskip("ray")
     definition = tmp_path / "tiny-ray.toml"
-    definition.write_text(TINY.replace('["fs1", "baseline"]', '["fs1"]'))
+    # One run: starting a local Ray instance dominates on a 2-core CI machine.
+    definition.write_text(
+        TINY.replace('["fs1", "baseline"]', '["fs1"]').replace("seeds = [0, 1]", "seeds = [0]")
+    )
     result = tsrl(
-        "experiment", str(definition), "--ray", "local", "--workers", "2", "--out-dir", str(tmp_path)
+        "experiment",
+        str(definition),
+        "--ray",
+        "local",
+        "--workers",
+        "1",
+        "--out-dir",
+        str(tmp_path),
+        timeout=600,
     )
     assert result.returncode == 0, result.stderr
     exp_dir = tmp_path / "tiny-ray"
-    for seed in (0, 1):
-        assert progress(exp_dir / f"tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s{seed}") == EXPECTED_ROWS
-    assert "2/2 runs: 2 trained" in result.stderr
+    assert progress(exp_dir / "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0") == EXPECTED_ROWS
+    assert "1/1 runs: 1 trained" in result.stderr
     assert (exp_dir / "summary.md").is_file() and "wrote" in result.stdout
 
 
