@@ -6,6 +6,7 @@ import math
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -55,15 +56,24 @@ def plot_learning_curves(run_dirs: Sequence[Path], out: Path, title: str | None 
         ax.plot(common, stats[:, 0], label=f"{label} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")
         if len(runs) > 1:
             ax.fill_between(common, stats[:, 0] - stats[:, 1], stats[:, 0] + stats[:, 1], alpha=0.2)
-    ax.set_xlabel("env steps")
+    if title is None and run_dirs:
+        title = load_config(Path(run_dirs[0])).env_id
+    return save_success_plot(fig, ax, out, xlabel="env steps", title=title)
+
+
+def save_success_plot(
+    fig: Any, ax: Any, out: Path, xlabel: str, title: str | None, fontsize: int = 12
+) -> Path:
+    """Labels a success-rate axes (y in [0, 1], grid, legend), writes the PNG to `out` and closes `fig`."""
+    import matplotlib.pyplot as plt
+
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("eval success rate")
     ax.set_ylim(-0.02, 1.02)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    if title is None and run_dirs:
-        title = load_config(Path(run_dirs[0])).env_id
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=fontsize)
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
+from ..agents.plotting import save_success_plot
 from .aggregate import Curve
 from .config import config_labels
 
@@ -34,15 +35,11 @@ def plot_curves(curves: list[Curve], x: Literal["episodes", "env_steps"], out: P
         )
         if n > 1:
             ax.fill_between(xs, low, high, color=colour, alpha=0.2, linewidth=0)
-    ax.set_xlabel("training episodes" if x == "episodes" else "env steps")
-    ax.set_ylabel("eval success rate")
-    ax.set_ylim(-0.02, 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(f"{title}: mean and 95% bootstrap CI across seeds", fontsize=10)
-    fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return save_success_plot(
+        fig,
+        ax,
+        out,
+        xlabel="training episodes" if x == "episodes" else "env steps",
+        title=f"{title}: mean and 95% bootstrap CI across seeds",
+        fontsize=10,
+    )
