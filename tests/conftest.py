@@ -6,7 +6,7 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: off-screen rendering in tests
 
-import mujoco  # noqa: E402
+import mujoco
 import numpy as np
 import pytest
 

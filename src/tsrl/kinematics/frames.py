@@ -17,7 +17,14 @@ _OBJECT_KINDS = {
     "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
     "key": mujoco.mjtObj.mjOBJ_KEY,
 }
-_COUNTS = {"site": "nsite", "body": "nbody", "geom": "ngeom", "joint": "njnt", "actuator": "nu", "key": "nkey"}
+_COUNTS = {
+    "site": "nsite",
+    "body": "nbody",
+    "geom": "ngeom",
+    "joint": "njnt",
+    "actuator": "nu",
+    "key": "nkey",
+}
 
 
 def names(model: mujoco.MjModel, kind: str) -> list[str]:
