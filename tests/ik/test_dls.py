@@ -10,7 +10,7 @@ import pytest
 
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS
 from tsrl.exceptions import InvalidConfig, UnknownName
-from tsrl.ik import IKResult, dls_step, ik_step, solve_ik
+from tsrl.ik import IKResult, IKStepper, dls_step, ik_step, solve_ik
 from tsrl.ik.dls import _Difference
 from tsrl.kinematics import forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
@@ -294,6 +294,20 @@ def test_ik_step_is_one_paper_step_and_leaves_data_alone(ur5e, pose_map):
     assert after < 0.1 * before
     far = ik_step(model, data, pose_map, target_at(model, pose_map, -HOME_Q), max_step=0.1)
     assert np.linalg.norm(far - HOME_Q) <= 0.1 + 1e-12
+
+
+def test_ik_stepper_repeats_ik_step_and_reports_the_linearised_residual(ur5e, pose_map):
+    model, data = ur5e
+    stepper = IKStepper(model, pose_map, damping=1e-3, max_step=0.2)
+    value = pose_map(model, data)
+    for delta in (0.05, -0.3, 1.0):  # small, clipped by max_step, and far
+        target = target_at(model, pose_map, HOME_Q + delta)
+        q_next, residual = stepper(data, target, value)
+        np.testing.assert_array_equal(
+            q_next, ik_step(model, data, pose_map, target, damping=1e-3, max_step=0.2)
+        )
+        predicted = pose_map.difference(target, value.y) - value.J @ (q_next - HOME_Q)
+        assert residual == pytest.approx(np.linalg.norm(predicted), rel=1e-12, abs=1e-15)
 
 
 # Bad input

@@ -20,8 +20,8 @@ from numpy.typing import ArrayLike
 from ..assets import load_model
 from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
 from ..exceptions import InvalidAction, InvalidConfig
-from ..ik import ik_step, solve_ik
-from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
+from ..ik import IKStepper, solve_ik
+from ..kinematics import arm_qpos_indices, name_to_id
 from ..taskmaps import OBS_PRESETS, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
 
@@ -47,17 +47,6 @@ def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
     if not np.isfinite(a).all():
         raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
     return np.minimum(np.maximum(a, space.low), space.high)
-
-
-#: Target of vectorZ(tcp) in `taskspace` mode: the suction cup points down.
-_CUP_DOWN = np.array([0.0, 0.0, -1.0])
-
-#: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
-_INSTABILITY_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-)
 
 
 class TsrlGoalEnv(gym.Env, EzPickle):
@@ -110,7 +99,6 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(self.control_dt / self.model.opt.timestep)
         self._arm_qpos = arm_qpos_indices(self.model)
-        self._arm_dofs = arm_dof_indices(self.model)
         self._arm_ctrl = np.array([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
         self._suction_ctrl = (
             name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
@@ -122,6 +110,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self.obs_map = parse_spec(self.obs_spec, self.model)
         ik_spec = self.action_config.ik_spec
         self.ik_map = parse_spec(ik_spec, self.model) if ik_spec else None
+        self._ik_step = IKStepper(self.model, self.ik_map) if ik_spec else None
         parts = [self.obs_spec, self.achieved_goal_spec, f"position({TARGET_SITE})"] + (
             [ik_spec] if ik_spec else []
         )
@@ -168,8 +157,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         if self._suction_ctrl is not None:
             self.data.ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
         warnings_before = self._instability_count()
-        for _ in range(self.n_substeps):
-            mujoco.mj_step(self.model, self.data)
+        mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
         # MuJoCo warns and resets the state when a non-finite or huge qpos/qvel/qacc appears.
         if self._instability_count() > warnings_before:
             obs = self._last_obs
@@ -178,7 +166,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self._evaluate()
         obs = self._observation()
         info = self._info(obs, ik_error)
-        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+        reward = 1.0 if info["is_success"] else 0.0  # compute_reward's rule, on the distance _info has
         if self.render_mode == "human":
             self.render()
         return obs, reward, False, False, info
@@ -265,10 +253,10 @@ class TsrlGoalEnv(gym.Env, EzPickle):
 
     def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
         diff = obs["achieved_goal"] - obs["desired_goal"]
-        distance = math.sqrt(diff @ diff)
+        squared = diff @ diff
         return {
-            "is_success": distance < self.success_radius,
-            "distance": distance,
+            "is_success": bool(squared < self.success_radius**2),  # as in compute_reward
+            "distance": math.sqrt(squared),
             "ik_error": float(ik_error),
         }
 
@@ -278,8 +266,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
         cfg = self.action_config
-        q = self.data.qpos[self._arm_qpos]
         if cfg.mode == "joint":
+            q = self.data.qpos[self._arm_qpos]
             return np.minimum(
                 np.maximum(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0]), JOINT_LIMITS[:, 1]
             ), 0.0
@@ -291,9 +279,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         target[3:] = _CUP_DOWN if cfg.mode == "taskspace" else a[3:6]
         initial = TaskMapValue(y_ik, self._value.J[self._ik_rows])
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
-            q_target = ik_step(self.model, self.data, self.ik_map, target, initial_value=initial)
-            residual = self.ik_map.difference(target, y_ik) - initial.J[:, self._arm_dofs] @ (q_target - q)
-            return q_target, math.sqrt(residual @ residual)
+            return self._ik_step(self.data, target, initial)
         self._ik_data.qpos[:] = self.data.qpos
         result = solve_ik(  # a local solve from the current pose: no restarts
             self.model,

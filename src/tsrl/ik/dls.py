@@ -1,4 +1,4 @@
-"""Damped least-squares IK over task maps: `dls_step` (pure), `ik_step` (one step), `solve_ik` (loop).
+"""Damped least-squares IK over task maps: `dls_step`, `ik_step` and `IKStepper` (one step), `solve_ik`.
 
 The maths and the benchmark behind the defaults are in docs/ik.md.
 """
@@ -228,14 +228,15 @@ def _vector(name: str, value: ArrayLike, size: int, what: str) -> np.ndarray:
 
 
 class _Problem:
-    """One call's validated inputs: the residual e = W (y* - y), its Jacobian W J and the DLS step."""
+    """Validated options of a solve; `bind` adds the call's data and target.
+
+    Then: the residual e = W (y* - y), its Jacobian W J and the DLS step.
+    """
 
     def __init__(
         self,
         model: mujoco.MjModel,
-        data: mujoco.MjData,
         task_map: TaskMap,
-        target: ArrayLike,
         *,
         weights: ArrayLike | None,
         damping: float,
@@ -245,9 +246,8 @@ class _Problem:
         posture_gain: float,
         joints: Sequence[str] | None,
     ):
-        self.model, self.data, self.task_map = model, data, task_map
+        self.model, self.task_map = model, task_map
         _, _, self.joints, self.difference = _setup(model, task_map, joints)
-        self.target = _vector("target", target, task_map.dim, "for the task map's rows")
         self.weights = None
         if weights is not None:
             w = _vector("weights", weights, task_map.dim, "(one per row of the task map)")
@@ -261,6 +261,12 @@ class _Problem:
         self.workspace = _Workspace(min(n, task_map.dim))
         self.posture = None if posture is None else _vector("posture", posture, n, "(one per moved joint)")
         self.posture_gain = _positive("posture_gain", posture_gain, allow_zero=True)
+
+    def bind(self, data: mujoco.MjData, target: ArrayLike) -> _Problem:
+        """Sets the data the call works in and its validated target (dim,); returns self."""
+        self.data = data
+        self.target = _vector("target", target, self.task_map.dim, "for the task map's rows")
+        return self
 
     def current(self) -> np.ndarray:
         """A copy of the moved joints' positions in data (n,); raises InvalidConfig if not finite."""
@@ -317,6 +323,62 @@ class _Problem:
         return np.minimum(np.maximum(q, self.joints.lo, out=q), self.joints.hi, out=q)
 
 
+class IKStepper:
+    """`ik_step` with its options checked once: for a control loop that takes one step per period.
+
+    `IKStepper(model, task_map, **options)(data, target, initial_value)[0]` equals
+    `ik_step(model, data, task_map, target, initial_value=initial_value, **options)`; the call also
+    returns the residual the linearised map predicts after the step.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        task_map: TaskMap,
+        *,
+        weights: ArrayLike | None = None,
+        damping: float = DEFAULT_DAMPING,
+        adaptive_damping: float = DEFAULT_ADAPTIVE_DAMPING,
+        max_step: float = DEFAULT_MAX_STEP,
+        posture: ArrayLike | None = None,
+        posture_gain: float = DEFAULT_POSTURE_GAIN,
+        joints: Sequence[str] | None = None,
+    ):
+        self._problem = _Problem(
+            model,
+            task_map,
+            weights=weights,
+            damping=damping,
+            adaptive_damping=adaptive_damping,
+            max_step=max_step,
+            posture=posture,
+            posture_gain=posture_gain,
+            joints=joints,
+        )
+
+    def __call__(
+        self, data: mujoco.MjData, target: ArrayLike, initial_value: TaskMapValue | None = None
+    ) -> tuple[np.ndarray, float]:
+        """One step from the configuration in `data` (see `ik_step`).
+
+        Returns:
+            q_next: q + dq within the joint limits (n,).
+            residual: ||W (y* - y) - W J (q_next - q)||, the error the linearised map predicts at q_next.
+        """
+        problem = self._problem.bind(data, target)
+        q = problem.current()
+        if initial_value is None:
+            mujoco.mj_kinematics(problem.model, data)
+            mujoco.mj_comPos(problem.model, data)
+            initial_value = problem.task_map(problem.model, data)
+        e, J, err = problem.residual(problem.checked_value(initial_value))
+        q_next = problem.step(q, e, J, err)
+        if q_next is None:
+            q_next = problem.clip(q)
+        r = e - J @ (q_next - q)
+        return q_next, math.sqrt(r @ r)
+
+
 def ik_step(
     model: mujoco.MjModel,
     data: mujoco.MjData,
@@ -335,18 +397,17 @@ def ik_step(
     """One linearised step from the configuration in `data`: q + dq within the joint limits (n,).
 
     The paper's formula q* = q + J^T (J J^T + lambda I)^{-1} (y* - y), with the damping, weights,
-    posture term and step bound of `solve_ik`, for use inside a control loop. `data.qpos` and
-    `data.qvel` are not changed. With `initial_value` (the map's value at data's configuration,
-    e.g. the one the environment computed this step) nothing is evaluated; without it the
-    kinematics in `data` are refreshed (mj_kinematics + mj_comPos) and the map is evaluated.
-    The step is taken from data's own q, even outside the limits; only the result is clipped.
-    Options as in `solve_ik`; raises InvalidConfig on bad input.
+    posture term and step bound of `solve_ik`, for use inside a control loop (`IKStepper` checks
+    the options once for many steps). `data.qpos` and `data.qvel` are not changed. With
+    `initial_value` (the map's value at data's configuration, e.g. the one the environment
+    computed this step) nothing is evaluated; without it the kinematics in `data` are refreshed
+    (mj_kinematics + mj_comPos) and the map is evaluated. The step is taken from data's own q,
+    even outside the limits; only the result is clipped. Options as in `solve_ik`; raises
+    InvalidConfig on bad input.
     """
-    problem = _Problem(
+    stepper = IKStepper(
         model,
-        data,
         task_map,
-        target,
         weights=weights,
         damping=damping,
         adaptive_damping=adaptive_damping,
@@ -355,13 +416,7 @@ def ik_step(
         posture_gain=posture_gain,
         joints=joints,
     )
-    q = problem.current()
-    if initial_value is None:
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        initial_value = task_map(model, data)
-    q_next = problem.step(q, *problem.residual(problem.checked_value(initial_value)))
-    return problem.clip(q) if q_next is None else q_next
+    return stepper(data, target, initial_value)[0]
 
 
 def solve_ik(
@@ -423,9 +478,7 @@ def solve_ik(
     """
     problem = _Problem(
         model,
-        data,
         task_map,
-        target,
         weights=weights,
         damping=damping,
         adaptive_damping=adaptive_damping,
@@ -433,7 +486,7 @@ def solve_ik(
         posture=posture,
         posture_gain=posture_gain,
         joints=joints,
-    )
+    ).bind(data, target)
     tol = _positive("tol", tol)
     max_iters = _count("max_iters", max_iters, 1)
     restarts = _count("restarts", restarts, 0)
