@@ -102,7 +102,8 @@ class Vector(RotationOnly, TaskMap):
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         s = cache[self.f]
         y[:] = s.rot[:, self.axis]
-        np.dot(skew(-y, self._skew), s.jacr, out=J)
+        np.dot(skew(y, self._skew), s.jacr, out=J)
+        np.negative(J, out=J)
 
 
 class ScalarProduct(RotationOnly, TaskMap):

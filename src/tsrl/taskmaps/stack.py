@@ -20,8 +20,9 @@ class Stack(TaskMap):
     frame's pose and Jacobian is computed once per call.
     """
 
-    #: (y, J, [(part, y rows, J rows)]): the parts' views into the last output buffers.
-    _views: tuple[np.ndarray, np.ndarray, list[tuple[TaskMap, np.ndarray, np.ndarray]]] | None = None
+    #: (y, J, [(part, y rows, J rows)], [(y rows, J rows, first y rows, first J rows)]): the views into
+    #: the last output buffers of the distinct parts, and of each repeated part and its first occurrence.
+    _views: tuple[np.ndarray, np.ndarray, list, list] | None = None
 
     def __init__(self, parts: Iterable[TaskMap]):
         flat: list[TaskMap] = []
@@ -43,9 +44,14 @@ class Stack(TaskMap):
         self.spec = ", ".join(p.spec for p in self.parts)
         self.frames = tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
         self._spans = tuple(self.slices.values())
+        # A part repeated (same spec) is evaluated once and copied: index of each part's first occurrence.
+        first: dict[str, int] = {}
+        self._first = tuple(first.setdefault(p.spec, i) for i, p in enumerate(self.parts))
         # Only parts whose coordinates can jump (quaternions) need their own difference.
         self._jumpy = tuple(
-            (p, span) for p, span in zip(self.parts, self._spans) if type(p).difference is not TaskMap.difference
+            (p, span)
+            for p, span in zip(self.parts, self._spans)
+            if type(p).difference is not TaskMap.difference
         )
 
     def frame_refs(self) -> tuple[Frame, ...]:
@@ -54,9 +60,18 @@ class Stack(TaskMap):
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         views = self._views
         if views is None or views[0] is not y or views[1] is not J:  # slice once per output buffer
-            views = self._views = (y, J, [(p, y[s], J[s]) for p, s in zip(self.parts, self._spans)])
+            views = self._views = self._slice(y, J)
         for part, y_part, J_part in views[2]:
             part.evaluate(cache, y_part, J_part)
+        for y_part, J_part, y_first, J_first in views[3]:
+            y_part[:] = y_first
+            J_part[:] = J_first
+
+    def _slice(self, y: np.ndarray, J: np.ndarray) -> tuple:
+        rows = [(y[s], J[s]) for s in self._spans]
+        distinct = [(p, *rows[i]) for i, p in enumerate(self.parts) if self._first[i] == i]
+        repeated = [(*rows[i], *rows[f]) for i, f in enumerate(self._first) if f != i]
+        return y, J, distinct, repeated
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
