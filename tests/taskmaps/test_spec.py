@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tsrl.exceptions import SpecError, UnknownName, UnknownTaskMap
+from tsrl.kinematics import forward_kinematics
 from tsrl.taskmaps import OBS_PRESETS, Position, Stack, known_maps, parse_spec
 
 #: The feature order of DESIGN.md's observation table.
@@ -69,6 +70,19 @@ def test_repeated_parts_get_numbered_keys(reach_model):
     stack = parse_spec("fs0, position(tcp), position(tcp)", reach_model)
     assert list(stack.slices)[-2:] == ["position(tcp)#2", "position(tcp)#3"]
     assert stack.slices["position(tcp)#3"] == slice(12, 15)
+
+
+def test_repeated_parts_carry_the_value_and_jacobian_of_their_first_occurrence(ur5e):
+    model, data = ur5e
+    forward_kinematics(model, data, [0.3, -1.2, 1.4, -1.9, -1.3, 0.4])
+    data.qvel[:6] = [0.1, -0.2, 0.3, 0.2, -0.1, 0.5]
+    spec = "velocity(positionDiff(tcp, target)), quaternion(tcp)"
+    stack = parse_spec(f"{spec}, position(tcp), {spec}", model)
+    once = parse_spec(spec, model)(model, data)
+    y, J = stack(model, data)
+    for rows in (slice(0, 7), slice(10, 17)):
+        np.testing.assert_array_equal(y[rows], once.y)
+        np.testing.assert_array_equal(J[rows], once.J)
 
 
 def test_canonical_spec_round_trips_and_ignores_whitespace(reach_model):
