@@ -28,7 +28,7 @@ learning_starts = 100
 
 @pytest.mark.parametrize(
     ("name", "runs", "budget"),
-    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 75_000)],
+    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)
