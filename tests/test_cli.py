@@ -1,21 +1,8 @@
 """The `tsrl` console script: help, the rendering demo, error exit codes."""
 
-import subprocess
-import sys
-
 import numpy as np
+from cli_runner import run_tsrl
 from PIL import Image
-
-
-def run_tsrl(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "tsrl.cli", *args],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=120,
-    )
 
 
 def test_help_lists_the_commands():

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_runner import run_tsrl
 
 #: Seconds-long training: 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
 TINY = [
@@ -19,16 +20,6 @@ TINY = [
     "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress",
 ]  # fmt: skip
 RUN_NAME = "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0"
-
-
-def tsrl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "tsrl.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
 
 
 def spawn(*args: str) -> subprocess.Popen:
@@ -58,7 +49,7 @@ def checkpoint_steps(run_dir: Path) -> list[int]:
 @pytest.fixture(scope="module")
 def trained_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("runs")
-    result = tsrl(
+    result = run_tsrl(
         "train", "--env", "tsrl/UR5eReach-v0", "--obs", "fs1", "--action", "taskspace", "--algo", "ddpg",
         "--seed", "0", "--out-dir", str(out), *TINY,
     )  # fmt: skip
@@ -85,14 +76,14 @@ def test_train_writes_a_self_describing_run_folder(trained_run):
 
 
 def test_evaluate_prints_success_rate_and_final_distance(trained_run):
-    result = tsrl("evaluate", str(trained_run), "--episodes", "3")
+    result = run_tsrl("evaluate", str(trained_run), "--episodes", "3")
     assert result.returncode == 0, result.stderr
     assert "success rate" in result.stdout and "mean final distance" in result.stdout
     assert "3 episodes" in result.stdout
 
 
 def test_render_writes_a_video(trained_run, tmp_path):
-    result = tsrl(
+    result = run_tsrl(
         "render",
         str(trained_run),
         "--out",
@@ -123,7 +114,7 @@ def test_sigkill_then_resume_continues_counters_without_duplicate_rows(tmp_path)
     proc.send_signal(signal.SIGKILL)
     proc.communicate()
     killed_at = max(checkpoint_steps(run_dir))
-    result = tsrl("train", "--resume", str(run_dir), "--total-timesteps", "500")
+    result = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", "500")
     assert result.returncode == 0, result.stderr
     assert steps_column(run_dir) == [(s, s // 50) for s in range(0, 501, 100)]  # each row once, none lost
     assert checkpoint_steps(run_dir) == [500]
@@ -145,7 +136,7 @@ def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
     assert "checkpoint saved" in stderr and "--resume" in stderr and "Traceback" not in stderr
     (stopped_at,) = checkpoint_steps(run_dir)  # the signal's checkpoint, not a periodic one
     assert stopped_at >= 100 and stopped_at % 100 == 0
-    result = tsrl("train", "--resume", str(run_dir), "--total-timesteps", str(stopped_at + 100))
+    result = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", str(stopped_at + 100))
     assert result.returncode == 0, result.stderr
     assert steps_column(run_dir) == [(s, s // 50) for s in range(0, stopped_at + 101, 100)]
 
@@ -166,9 +157,9 @@ def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
 )
 def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
     result = (
-        tsrl(*args, "--out-dir", str(tmp_path))
+        run_tsrl(*args, "--out-dir", str(tmp_path))
         if args[0] == "train" and "--resume" not in args
-        else tsrl(*args)
+        else run_tsrl(*args)
     )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
@@ -178,9 +169,9 @@ def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
 
 
 def test_help_lists_the_training_commands():
-    result = tsrl("--help")
+    result = run_tsrl("--help")
     assert result.returncode == 0
     for command in ("train", "evaluate", "render", "demo"):
         assert command in result.stdout
-    assert "--her-strategy" in tsrl("train", "--help").stdout
+    assert "--her-strategy" in run_tsrl("train", "--help").stdout
     assert os.environ.get("MUJOCO_GL", "egl")

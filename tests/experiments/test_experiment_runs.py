@@ -19,13 +19,13 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_runner import run_tsrl
 
 from tsrl.agents.checkpoint import latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import load_experiment
 from tsrl.experiments.pool import run_experiment
 
-REPO = Path(__file__).resolve().parents[2]
 TINY = """
 description = "Two presets, two seeds, seconds each."
 obs = ["fs1", "baseline"]
@@ -41,17 +41,6 @@ gradient_steps = 10
 batch_size = 64
 """
 EXPECTED_ROWS = [(0, 0), (100, 2), (200, 4), (300, 6)]  # (env steps, episodes) of each run's evaluations
-
-
-def tsrl(*args: str, cwd: Path = REPO, timeout: float = 180) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "tsrl.cli", *args],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=timeout,
-    )
 
 
 def progress(run_dir: Path) -> list[tuple[int, int]]:
@@ -145,7 +134,7 @@ def test_experiment_on_a_local_ray_instance(tmp_path):
     definition.write_text(
         TINY.replace('["fs1", "baseline"]', '["fs1"]').replace("seeds = [0, 1]", "seeds = [0]")
     )
-    result = tsrl(
+    result = run_tsrl(
         "experiment",
         str(definition),
         "--ray",
@@ -179,7 +168,11 @@ def test_cli_errors_are_one_line_and_exit_code_2(args, expected, tmp_path):
     if "BAD" in args:
         (tmp_path / "bad.toml").write_text("seed = [0]\n")
         args = [a.replace("BAD", str(tmp_path / "bad.toml")) for a in args]
-    result = tsrl(*args, "--out-dir", str(tmp_path)) if args[0] == "experiment" else tsrl(*args, cwd=tmp_path)
+    result = (
+        run_tsrl(*args, "--out-dir", str(tmp_path))
+        if args[0] == "experiment"
+        else run_tsrl(*args, cwd=tmp_path)
+    )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], result.stderr

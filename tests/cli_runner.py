@@ -1,0 +1,22 @@
+"""Runs the `tsrl` command line in a subprocess, as a user would (`python -m tsrl.cli`)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+#: The checkout's root: experiment definitions under experiments/ are found from here.
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_tsrl(*args: str, cwd: Path = REPO, timeout: float = 180) -> subprocess.CompletedProcess:
+    """`tsrl *args` with its exit code, stdout and stderr (text); never raises on a non-zero exit."""
+    return subprocess.run(
+        [sys.executable, "-m", "tsrl.cli", *args],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
