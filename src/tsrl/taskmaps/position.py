@@ -8,15 +8,14 @@ import numpy as np
 from .base import TaskMap
 from .frames import Frame, FrameCache, resolve_frame
 
-#: [v]x = v[_SKEW_INDEX] * _SKEW_SIGN, row by row, for v = (x, y, z): [[0, -z, y], [z, 0, -x], [-y, x, 0]].
-_SKEW_INDEX = np.array([0, 2, 1, 2, 0, 0, 1, 0, 0])
-_SKEW_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
+#: [v]x = v[_SKEW_INDEX] * _SKEW_SIGN for v = (x, y, z): [[0, -z, y], [z, 0, -x], [-y, x, 0]].
+_SKEW_INDEX = np.array([[0, 2, 1], [2, 0, 0], [1, 0, 0]])
+_SKEW_SIGN = np.array([[0.0, -1.0, 1.0], [1.0, 0.0, -1.0], [-1.0, 1.0, 0.0]])
 
 
 def skew(v: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """Writes the cross-product matrix [v]x (3, 3) of v (3,) into `out`, C-contiguous (so [v]x w = v x w)."""
-    np.multiply(v[_SKEW_INDEX], _SKEW_SIGN, out=out.reshape(9))
-    return out
+    """Writes the cross-product matrix [v]x (3, 3) of v (3,) into `out` (so [v]x w = v x w)."""
+    return np.multiply(v[_SKEW_INDEX], _SKEW_SIGN, out=out)
 
 
 class Position(TaskMap):
