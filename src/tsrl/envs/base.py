@@ -41,12 +41,20 @@ _INSTABILITY_WARNINGS = tuple(
 
 def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
     """A finite action of the space's shape, clipped to its bounds; NaN/inf is rejected."""
+    return _checked_action(action, space.shape, space.low.astype(np.float64), space.high.astype(np.float64))
+
+
+def _checked_action(
+    action: ArrayLike, shape: tuple[int, ...], low: np.ndarray, high: np.ndarray
+) -> np.ndarray:
+    """`checked_action` with the space's bounds already in float64 (a step clips with them)."""
     a = np.asarray(action, dtype=np.float64)
-    if a.shape != space.shape:
-        raise InvalidAction(f"action of shape {a.shape}; expected {space.shape}")
-    if not np.isfinite(a).all():
+    if a.shape != shape:
+        raise InvalidAction(f"action of shape {a.shape}; expected {shape}")
+    # a . a is finite exactly when every entry is (unless the sum overflows: then check each entry).
+    if not (math.isfinite(a @ a) or np.isfinite(a).all()):
         raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
-    return np.minimum(np.maximum(a, space.low), space.high)
+    return np.minimum(np.maximum(a, low), high)
 
 
 class TsrlGoalEnv(gym.Env, EzPickle):
@@ -99,7 +107,9 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(self.control_dt / self.model.opt.timestep)
         self._arm_qpos = arm_qpos_indices(self.model)
-        self._arm_ctrl = np.array([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
+        arm_ctrl = [name_to_id(self.model, "actuator", n) for n in JOINT_NAMES]
+        contiguous = arm_ctrl == list(range(arm_ctrl[0], arm_ctrl[0] + len(arm_ctrl)))
+        self._arm_ctrl = slice(arm_ctrl[0], arm_ctrl[-1] + 1) if contiguous else np.array(arm_ctrl)
         self._suction_ctrl = (
             name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
         )
@@ -115,22 +125,30 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             [ik_spec] if ik_spec else []
         )
         self._step_maps = parse_spec(", ".join(parts), self.model)
-        d_obs = self.obs_map.dim
-        self._achieved_rows = slice(d_obs, d_obs + 3)
-        self._desired_rows = slice(d_obs + 3, d_obs + 6)
-        self._ik_rows = slice(d_obs + 6, self._step_maps.dim)
+        # Set by _evaluate: the stack's output buffers and views of their rows (observation, achieved
+        # and desired goal; the IK map's value).
         self._value: TaskMapValue | None = None
-        # Live views of the warning counters that mean the physics blew up.
-        self._instability_warnings = [self.data.warning[int(w)] for w in _INSTABILITY_WARNINGS]
+        self._views: tuple[np.ndarray, np.ndarray, np.ndarray] = ()
+        self._ik_value: TaskMapValue | None = None
+        self._ik_target = (
+            np.zeros(self.ik_map.dim) if ik_spec else None
+        )  # the IK's target, rewritten each step
+        if self.action_config.mode == "taskspace":
+            self._ik_target[3:] = _CUP_DOWN
+        self._warning_counts = (
+            self.data.warning.number
+        )  # live view (mjNWARNING,) of MuJoCo's warning counters
 
         self.observation_space = spaces.Dict(
             {
-                "observation": spaces.Box(-np.inf, np.inf, (d_obs,), np.float64),
+                "observation": spaces.Box(-np.inf, np.inf, (self.obs_map.dim,), np.float64),
                 "achieved_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
                 "desired_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, (self.action_config.dim,), np.float32)
+        self._action_low = self.action_space.low.astype(np.float64)
+        self._action_high = self.action_space.high.astype(np.float64)
         self._renderer = None
         self._viewer = None
 
@@ -151,7 +169,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         return obs, self._info(obs, ik_error=0.0)
 
     def step(self, action: ArrayLike):
-        a = checked_action(action, self.action_space)
+        a = _checked_action(action, self.action_space.shape, self._action_low, self._action_high)
         q_target, ik_error = self._joint_targets(a)
         self.data.ctrl[self._arm_ctrl] = q_target
         if self._suction_ctrl is not None:
@@ -239,14 +257,20 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         if kinematics:
             mujoco.mj_kinematics(self.model, self.data)
             mujoco.mj_comPos(self.model, self.data)
-        self._value = self._step_maps(self.model, self.data)
+        value = self._step_maps.in_place(self.model, self.data)
+        if value is not self._value:  # the stack's buffers, the same from the first call on: view them once
+            self._value = value
+            y, J = value
+            d_obs = self.obs_map.dim
+            self._views = (y[:d_obs], y[d_obs : d_obs + 3], y[d_obs + 3 : d_obs + 6])
+            self._ik_value = TaskMapValue(y[d_obs + 6 :], J[d_obs + 6 :])
 
     def _observation(self) -> dict[str, np.ndarray]:
-        y = self._value.y
+        observation, achieved, desired = self._views
         obs = {
-            "observation": y[: self.obs_map.dim].copy(),
-            "achieved_goal": y[self._achieved_rows].copy(),
-            "desired_goal": y[self._desired_rows].copy(),
+            "observation": observation.copy(),
+            "achieved_goal": achieved.copy(),
+            "desired_goal": desired.copy(),
         }
         self._last_obs = obs
         return obs
@@ -261,7 +285,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         }
 
     def _instability_count(self) -> int:
-        return sum(w.number for w in self._instability_warnings)
+        counts = self._warning_counts.tolist()
+        return sum(counts[w] for w in _INSTABILITY_WARNINGS)
 
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
@@ -271,13 +296,16 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             return np.minimum(
                 np.maximum(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0]), JOINT_LIMITS[:, 1]
             ), 0.0
-        y_ik = self._value.y[self._ik_rows]
-        target = np.empty(self.ik_map.dim)
-        target[:3] = np.minimum(
-            np.maximum(y_ik[:3] + cfg.max_tcp_step * a[:3], self.workspace_low), self.workspace_high
-        )
-        target[3:] = _CUP_DOWN if cfg.mode == "taskspace" else a[3:6]
-        initial = TaskMapValue(y_ik, self._value.J[self._ik_rows])
+        initial = self._ik_value
+        # The TCP position target y + step * a within the workspace; in taskspace mode the rest of
+        # the target (cup down) is constant.
+        p = self._ik_target[:3]
+        np.multiply(a[:3], cfg.max_tcp_step, out=p)
+        np.add(initial.y[:3], p, out=p)
+        np.minimum(np.maximum(p, self.workspace_low, out=p), self.workspace_high, out=p)
+        if cfg.mode == "taskspace_orient":
+            self._ik_target[3:] = a[3:6]
+        target = self._ik_target
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
             return self._ik_step(self.data, target, initial)
         self._ik_data.qpos[:] = self.data.qpos

@@ -217,12 +217,21 @@ def _count(name: str, value: int, minimum: int) -> int:
     return int(value)
 
 
+def _finite(v: np.ndarray) -> bool:
+    """Whether every entry of the 1-D float array v is finite.
+
+    v . v is finite exactly when every entry is, unless the sum overflows; only then is each entry
+    checked. One dot product costs a third of `np.isfinite(v).all()` on the short vectors of a step.
+    """
+    return math.isfinite(v @ v) or bool(np.isfinite(v).all())
+
+
 def _vector(name: str, value: ArrayLike, size: int, what: str) -> np.ndarray:
     """value as a finite float array of shape (size,); `what` (said of the size) goes into the error."""
     v = np.asarray(value, dtype=np.float64)
     if v.shape != (size,):
         raise InvalidConfig(f"{name} has shape {v.shape}; expected ({size},) {what}")
-    if not np.isfinite(v).all():
+    if not _finite(v):
         raise InvalidConfig(f"{name} must be finite; got {v!r}")
     return v
 
@@ -270,8 +279,8 @@ class _Problem:
 
     def current(self) -> np.ndarray:
         """A copy of the moved joints' positions in data (n,); raises InvalidConfig if not finite."""
-        q = np.array(self.data.qpos[self.joints.qsel])
-        if not np.isfinite(q).all():
+        q = self.data.qpos[self.joints.qsel].copy()
+        if not _finite(q):
             raise InvalidConfig(f"data.qpos holds non-finite joint positions {q!r}")
         return q
 

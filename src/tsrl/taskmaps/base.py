@@ -43,12 +43,21 @@ class TaskMap(abc.ABC):
 
     def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> TaskMapValue:
         """Returns (y, J) at the configuration held in `data`, as fresh arrays."""
+        y, J = self.in_place(model, data)
+        return TaskMapValue(y.copy(), J.copy())
+
+    def in_place(self, model: mujoco.MjModel, data: mujoco.MjData) -> TaskMapValue:
+        """As calling the map, but returns the map's own output buffers, not copies.
+
+        The same two arrays (y (dim,), J (dim, nv)) come back from every call for `model`, each call
+        overwriting them: for a control loop that reads them before it evaluates the map again.
+        """
         ws = self._workspace
         if ws is None or ws.model is not model:
             ws = self._workspace = _Workspace(model, self)
         ws.cache.update(data)
         self.evaluate(ws.cache, ws.y, ws.J)
-        return TaskMapValue(ws.y.copy(), ws.J.copy())
+        return ws.value
 
     @abc.abstractmethod
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
@@ -103,3 +112,4 @@ class _Workspace:
         self.cache = FrameCache(model, task_map.frame_refs())
         self.y = np.zeros(task_map.dim)
         self.J = np.zeros((task_map.dim, model.nv))
+        self.value = TaskMapValue(self.y, self.J)
