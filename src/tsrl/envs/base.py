@@ -22,14 +22,14 @@ from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR,
 from ..exceptions import InvalidAction, InvalidConfig
 from ..ik import IKStepper, solve_ik
 from ..kinematics import arm_qpos_indices, name_to_id
-from ..taskmaps import OBS_PRESETS, TaskMapValue, parse_spec
+from ..taskmaps import OBS_PRESETS, Stack, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
 
 #: Target of vectorZ(tcp) in `taskspace` mode: the suction cup points down.
 _CUP_DOWN = np.array([0.0, 0.0, -1.0])
 
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
-_INSTABILITY_WARNINGS = tuple(
+_BADQACC, _BADQVEL, _BADQPOS = (
     int(w)
     for w in (
         mujoco.mjtWarning.mjWARN_BADQACC,
@@ -37,6 +37,12 @@ _INSTABILITY_WARNINGS = tuple(
         mujoco.mjtWarning.mjWARN_BADQPOS,
     )
 )
+
+
+def _as_slice(indices: list[int]) -> slice | np.ndarray:
+    """The indices as a slice where they are consecutive (numpy then views instead of copying), else an array."""
+    consecutive = indices == list(range(indices[0], indices[0] + len(indices)))
+    return slice(indices[0], indices[-1] + 1) if consecutive else np.array(indices)
 
 
 def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
@@ -106,38 +112,48 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self.data = mujoco.MjData(self.model)
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(self.control_dt / self.model.opt.timestep)
-        self._arm_qpos = arm_qpos_indices(self.model)
-        arm_ctrl = [name_to_id(self.model, "actuator", n) for n in JOINT_NAMES]
-        contiguous = arm_ctrl == list(range(arm_ctrl[0], arm_ctrl[0] + len(arm_ctrl)))
-        self._arm_ctrl = slice(arm_ctrl[0], arm_ctrl[-1] + 1) if contiguous else np.array(arm_ctrl)
+        self._arm_qpos = _as_slice(arm_qpos_indices(self.model).tolist())
+        self._arm_ctrl = _as_slice([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
         self._suction_ctrl = (
             name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
         )
         self._target_mocap = self.model.body_mocapid[name_to_id(self.model, "body", TARGET_BODY)]
         self._home_key = name_to_id(self.model, "key", HOME_KEY)
 
-        # The observation's maps, and every map a step needs, in one stack evaluated once per step.
         self.obs_map = parse_spec(self.obs_spec, self.model)
         ik_spec = self.action_config.ik_spec
         self.ik_map = parse_spec(ik_spec, self.model) if ik_spec else None
         self._ik_step = IKStepper(self.model, self.ik_map) if ik_spec else None
-        parts = [self.obs_spec, self.achieved_goal_spec, f"position({TARGET_SITE})"] + (
-            [ik_spec] if ik_spec else []
-        )
-        self._step_maps = parse_spec(", ".join(parts), self.model)
+        # Every map a step needs, in one stack evaluated once per step: the observation's maps, then
+        # those of the IK and the goals that the observation lacks (a map already there is read there).
+        achieved, desired = parse_spec(
+            f"{self.achieved_goal_spec}, position({TARGET_SITE})", self.model
+        ).parts
+        step_parts = list(self.obs_map.parts)
+        for part in (*(self.ik_map.parts if self.ik_map else ()), achieved, desired):
+            if all(part.spec != p.spec for p in step_parts):
+                step_parts.append(part)
+        self._step_maps = Stack(step_parts)
+        rows = self._step_maps.slices  # a spec's first occurrence is keyed by the spec itself
+        self._achieved_rows, self._desired_rows = rows[achieved.spec], rows[desired.spec]
+        # The IK map's rows: a slice where they follow one another in the stack, else gathered each step.
+        self._ik_rows: slice | np.ndarray | None = None
+        if self.ik_map is not None:
+            self._ik_rows = _as_slice(
+                [i for p in self.ik_map.parts for i in range(rows[p.spec].start, rows[p.spec].stop)]
+            )
         # Set by _evaluate: the stack's output buffers and views of their rows (observation, achieved
-        # and desired goal; the IK map's value).
+        # and desired goal; the IK map's value, or buffers it is gathered into).
         self._value: TaskMapValue | None = None
         self._views: tuple[np.ndarray, np.ndarray, np.ndarray] = ()
         self._ik_value: TaskMapValue | None = None
-        self._ik_target = (
-            np.zeros(self.ik_map.dim) if ik_spec else None
-        )  # the IK's target, rewritten each step
+        # The IK's target, rewritten each step; in taskspace mode only its position part changes.
+        self._ik_target = np.zeros(self.ik_map.dim) if ik_spec else None
         if self.action_config.mode == "taskspace":
             self._ik_target[3:] = _CUP_DOWN
-        self._warning_counts = (
-            self.data.warning.number
-        )  # live view (mjNWARNING,) of MuJoCo's warning counters
+        # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
+        self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
+        self._warning_counts = self.data.warning.number
 
         self.observation_space = spaces.Dict(
             {
@@ -171,9 +187,9 @@ class TsrlGoalEnv(gym.Env, EzPickle):
     def step(self, action: ArrayLike):
         a = _checked_action(action, self.action_space.shape, self._action_low, self._action_high)
         q_target, ik_error = self._joint_targets(a)
-        self.data.ctrl[self._arm_ctrl] = q_target
+        self._ctrl[self._arm_ctrl] = q_target
         if self._suction_ctrl is not None:
-            self.data.ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
+            self._ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
         warnings_before = self._instability_count()
         mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
         # MuJoCo warns and resets the state when a non-finite or huge qpos/qvel/qacc appears.
@@ -261,9 +277,15 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         if value is not self._value:  # the stack's buffers, the same from the first call on: view them once
             self._value = value
             y, J = value
-            d_obs = self.obs_map.dim
-            self._views = (y[:d_obs], y[d_obs : d_obs + 3], y[d_obs + 3 : d_obs + 6])
-            self._ik_value = TaskMapValue(y[d_obs + 6 :], J[d_obs + 6 :])
+            self._views = (y[: self.obs_map.dim], y[self._achieved_rows], y[self._desired_rows])
+            ik = self._ik_rows
+            if isinstance(ik, slice):
+                self._ik_value = TaskMapValue(y[ik], J[ik])
+            elif ik is not None:
+                self._ik_value = TaskMapValue(np.empty(ik.size), np.empty((ik.size, J.shape[1])))
+        if isinstance(self._ik_rows, np.ndarray):  # gather the IK map's rows
+            np.take(value.y, self._ik_rows, out=self._ik_value.y)
+            np.take(value.J, self._ik_rows, axis=0, out=self._ik_value.J)
 
     def _observation(self) -> dict[str, np.ndarray]:
         observation, achieved, desired = self._views
@@ -286,13 +308,13 @@ class TsrlGoalEnv(gym.Env, EzPickle):
 
     def _instability_count(self) -> int:
         counts = self._warning_counts.tolist()
-        return sum(counts[w] for w in _INSTABILITY_WARNINGS)
+        return counts[_BADQACC] + counts[_BADQVEL] + counts[_BADQPOS]
 
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
         cfg = self.action_config
         if cfg.mode == "joint":
-            q = self.data.qpos[self._arm_qpos]
+            q = self._qpos[self._arm_qpos]
             return np.minimum(
                 np.maximum(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0]), JOINT_LIMITS[:, 1]
             ), 0.0
@@ -307,7 +329,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             self._ik_target[3:] = a[3:6]
         target = self._ik_target
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
-            return self._ik_step(self.data, target, initial)
+            # Its inputs come from the step's own maps and state (finite: a blow-up ends the episode).
+            return self._ik_step.step_from(self._qpos[self._arm_qpos], initial, target)
         self._ik_data.qpos[:] = self.data.qpos
         result = solve_ik(  # a local solve from the current pose: no restarts
             self.model,

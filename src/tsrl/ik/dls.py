@@ -380,10 +380,22 @@ class IKStepper:
             mujoco.mj_kinematics(problem.model, data)
             mujoco.mj_comPos(problem.model, data)
             initial_value = problem.task_map(problem.model, data)
-        e, J, err = problem.residual(problem.checked_value(initial_value))
+        return self.step_from(q, problem.checked_value(initial_value), problem.target)
+
+    def step_from(self, q: np.ndarray, value: TaskMapValue, target: np.ndarray) -> tuple[np.ndarray, float]:
+        """The step of a call, from the moved joints' positions q (n,), the map's value (y, J) at q and
+        the target (dim,), all taken as they are: nothing is checked.
+
+        For a control loop that guarantees its inputs (float64 arrays of the right shapes, finite, J
+        C-contiguous), as the environments do with values from the same map: the checks of a call
+        cost a third of the step. q is not written. Returns (q_next, residual) as a call does.
+        """
+        problem = self._problem
+        problem.target = target
+        e, J, err = problem.residual(value)
         q_next = problem.step(q, e, J, err)
         if q_next is None:
-            q_next = problem.clip(q)
+            q_next = problem.clip(q.copy())
         r = e - J @ (q_next - q)
         return q_next, math.sqrt(r @ r)
 
