@@ -310,6 +310,20 @@ def test_ik_stepper_repeats_ik_step_and_reports_the_linearised_residual(ur5e, po
         assert residual == pytest.approx(np.linalg.norm(predicted), rel=1e-12, abs=1e-15)
 
 
+def test_ik_stepper_step_from_is_the_call_without_its_checks(ur5e, pose_map):
+    model, data = ur5e
+    stepper = IKStepper(model, pose_map, damping=1e-3, max_step=0.2)
+    value = pose_map(model, data)
+    q = data.qpos[:6].copy()
+    for delta in (0.05, -0.3, 1.0):
+        target = target_at(model, pose_map, HOME_Q + delta)
+        q_next, residual = stepper.step_from(q, value, target)
+        expected_q, expected_residual = stepper(data, target, value)
+        np.testing.assert_array_equal(q_next, expected_q)
+        assert residual == expected_residual
+        np.testing.assert_array_equal(q, data.qpos[:6])  # q is not written
+
+
 # Bad input
 
 

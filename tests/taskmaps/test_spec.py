@@ -7,6 +7,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
+from tsrl.assets.ur5e import HOME_Q
 from tsrl.exceptions import SpecError, UnknownName, UnknownTaskMap
 from tsrl.kinematics import forward_kinematics
 from tsrl.taskmaps import OBS_PRESETS, Position, Stack, known_maps, parse_spec
@@ -64,6 +65,20 @@ def test_a_single_map_is_a_stack_of_one(ur5e):
     assert isinstance(stack, Stack) and len(stack) == 1
     assert stack.slices == {"position(tcp)": slice(0, 3)}
     np.testing.assert_array_equal(stack(model, data).y, Position(model, "tcp")(model, data).y)
+
+
+def test_in_place_returns_the_maps_own_buffers_with_the_calls_numbers(ur5e, rng):
+    model, data = ur5e
+    stack = parse_spec("fs2", model)
+    first = stack.in_place(model, data)
+    for q in HOME_Q + rng.uniform(-0.5, 0.5, (3, 6)):
+        forward_kinematics(model, data, q)
+        value = stack.in_place(model, data)
+        assert value.y is first.y and value.J is first.J  # the same arrays, overwritten
+        fresh = stack(model, data)
+        assert fresh.y is not value.y and fresh.J is not value.J
+        np.testing.assert_array_equal(value.y, fresh.y)
+        np.testing.assert_array_equal(value.J, fresh.J)
 
 
 def test_repeated_parts_get_numbered_keys(reach_model):
