@@ -11,6 +11,7 @@ import pytest
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS, TCP_OFFSET, UR5E_DH
 from tsrl.kinematics import dh_forward, forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
+from tsrl.taskmaps.position import negative_skew, skew
 
 from .conftest import finite_difference_jacobian, set_qpos
 
@@ -253,3 +254,9 @@ def test_site_with_its_own_rotation(rng):
         )
         assert np.abs(y[:4] - y[4:]).max() > 0.1  # the site is rotated against its body
         np.testing.assert_allclose(J, finite_difference_jacobian(quaternion, model, data), atol=1e-6)
+
+
+def test_skew_matrices_are_the_cross_product(rng):
+    v, w = rng.normal(size=3), rng.normal(size=3)
+    np.testing.assert_allclose(skew(v, np.empty((3, 3))) @ w, np.cross(v, w), atol=1e-15)
+    np.testing.assert_array_equal(negative_skew(v, np.empty((3, 3))), -skew(v, np.empty((3, 3))))

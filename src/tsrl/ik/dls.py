@@ -285,13 +285,14 @@ class _Problem:
         return q
 
     def checked_value(self, value: TaskMapValue) -> TaskMapValue:
+        """A caller's (y, J) as float64 arrays, J C-contiguous; raises InvalidConfig on wrong shapes."""
         y, J = value
         dim, nv = self.task_map.dim, self.model.nv
         if np.shape(y) != (dim,) or np.shape(J) != (dim, nv):
             raise InvalidConfig(
                 f"initial_value has y {np.shape(y)} and J {np.shape(J)}; expected ({dim},) and ({dim}, {nv})"
             )
-        return value
+        return TaskMapValue(np.asarray(y, dtype=np.float64), np.ascontiguousarray(J, dtype=np.float64))
 
     def evaluate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Sets the joints to q in data, runs mj_kinematics + mj_comPos, returns (e, W J, ||e||)."""
@@ -299,15 +300,17 @@ class _Problem:
         data.qpos[self.joints.qsel] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        return self.residual(self.task_map(model, data))
+        y, J = self.task_map(model, data)
+        return self.residual(
+            TaskMapValue(y, np.ascontiguousarray(J, dtype=np.float64))
+        )  # no copy for a stock map
 
     def residual(self, value: TaskMapValue) -> tuple[np.ndarray, np.ndarray, float]:
-        """(e (k,), W J (k, n), ||e||) for a task-map value (y, J)."""
+        """(e (k,), W J (k, n), ||e||) for a task-map value (y, J) of float64 arrays, J C-contiguous."""
         y, J = value
         e = self.difference(self.task_map, self.target, y)
         if self.joints.dadr is not None:
-            J = J[:, self.joints.dadr]
-        J = np.ascontiguousarray(J, dtype=np.float64)  # no copy for a map's own J
+            J = np.ascontiguousarray(J[:, self.joints.dadr])  # fancy indexing may give F order
         if self.weights is not None:
             e = e * self.weights
             J = J * self.weight_rows

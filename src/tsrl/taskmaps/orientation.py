@@ -7,7 +7,7 @@ import numpy as np
 
 from .base import TaskMap
 from .frames import Frame, FrameCache, resolve_frame
-from .position import skew
+from .position import negative_skew
 
 AXES = "XYZ"
 
@@ -102,8 +102,7 @@ class Vector(RotationOnly, TaskMap):
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         s = cache[self.f]
         y[:] = s.rot[:, self.axis]
-        np.dot(skew(y, self._skew), s.jacr, out=J)
-        np.negative(J, out=J)
+        np.dot(negative_skew(y, self._skew), s.jacr, out=J)
 
 
 class ScalarProduct(RotationOnly, TaskMap):

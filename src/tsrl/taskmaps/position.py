@@ -11,11 +11,17 @@ from .frames import Frame, FrameCache, resolve_frame
 #: [v]x = v[_SKEW_INDEX] * _SKEW_SIGN for v = (x, y, z): [[0, -z, y], [z, 0, -x], [-y, x, 0]].
 _SKEW_INDEX = np.array([[0, 2, 1], [2, 0, 0], [1, 0, 0]])
 _SKEW_SIGN = np.array([[0.0, -1.0, 1.0], [1.0, 0.0, -1.0], [-1.0, 1.0, 0.0]])
+_NEGATIVE_SKEW_SIGN = -_SKEW_SIGN
 
 
 def skew(v: np.ndarray, out: np.ndarray) -> np.ndarray:
     """Writes the cross-product matrix [v]x (3, 3) of v (3,) into `out` (so [v]x w = v x w)."""
     return np.multiply(v[_SKEW_INDEX], _SKEW_SIGN, out=out)
+
+
+def negative_skew(v: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Writes -[v]x = [v]x^T (3, 3) into `out` (so -[v]x w = w x v)."""
+    return np.multiply(v[_SKEW_INDEX], _NEGATIVE_SKEW_SIGN, out=out)
 
 
 class Position(TaskMap):
