@@ -81,6 +81,19 @@ def test_in_place_returns_the_maps_own_buffers_with_the_calls_numbers(ur5e, rng)
         np.testing.assert_array_equal(value.J, fresh.J)
 
 
+def test_velocity_of_a_map_in_the_same_stack_equals_the_velocity_map_alone(ur5e, rng):
+    model, data = ur5e
+    for spec in ("velocity(positionDiff(tcp, upper_arm_link)), positionDiff(tcp, upper_arm_link)", "fs2"):
+        stack = parse_spec(spec, model)
+        forward_kinematics(model, data, HOME_Q + rng.uniform(-0.5, 0.5, 6))
+        data.qvel[:6] = rng.normal(size=6)
+        value = stack(model, data)
+        for part, rows in zip(stack.parts, stack.slices.values()):
+            alone = parse_spec(part.spec, model)(model, data)
+            np.testing.assert_array_equal(value.y[rows], alone.y)
+            np.testing.assert_array_equal(value.J[rows], alone.J)
+
+
 def test_repeated_parts_get_numbered_keys(reach_model):
     stack = parse_spec("fs0, position(tcp), position(tcp)", reach_model)
     assert list(stack.slices)[-2:] == ["position(tcp)#2", "position(tcp)#3"]

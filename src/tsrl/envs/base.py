@@ -58,7 +58,7 @@ def _checked_action(
     if a.shape != shape:
         raise InvalidAction(f"action of shape {a.shape}; expected {shape}")
     # a . a is finite exactly when every entry is (unless the sum overflows: then check each entry).
-    if not (math.isfinite(a @ a) or np.isfinite(a).all()):
+    if not (math.isfinite(a.dot(a)) or np.isfinite(a).all()):
         raise InvalidAction(f"action {a} contains NaN or inf; it is rejected before it reaches the simulator")
     return np.minimum(np.maximum(a, low), high)
 
@@ -299,7 +299,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
 
     def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
         diff = obs["achieved_goal"] - obs["desired_goal"]
-        squared = diff @ diff
+        squared = diff.dot(diff)
         return {
             "is_success": bool(squared < self.success_radius**2),  # as in compute_reward
             "distance": math.sqrt(squared),

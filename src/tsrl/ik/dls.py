@@ -223,7 +223,7 @@ def _finite(v: np.ndarray) -> bool:
     v . v is finite exactly when every entry is, unless the sum overflows; only then is each entry
     checked. One dot product costs a third of `np.isfinite(v).all()` on the short vectors of a step.
     """
-    return math.isfinite(v @ v) or bool(np.isfinite(v).all())
+    return math.isfinite(v.dot(v)) or bool(np.isfinite(v).all())
 
 
 def _vector(name: str, value: ArrayLike, size: int, what: str) -> np.ndarray:
@@ -314,7 +314,7 @@ class _Problem:
         if self.weights is not None:
             e = e * self.weights
             J = J * self.weight_rows
-        err = math.sqrt(e @ e)
+        err = math.sqrt(e.dot(e))
         return e, J, err if math.isfinite(err) else math.inf  # a NaN in y never reaches the result
 
     def step(self, q: np.ndarray, e: np.ndarray, J: np.ndarray, err: float) -> np.ndarray | None:
@@ -322,7 +322,7 @@ class _Problem:
         lam = self.damping + self.adaptive_damping * err * err
         d = None if self.posture is None else self.posture_gain * (self.posture - q)
         dq = _dls(J, e, lam, d, self.workspace)
-        norm = math.sqrt(dq @ dq)
+        norm = math.sqrt(dq.dot(dq))
         if not math.isfinite(norm):
             return None
         if norm > self.max_step:
@@ -399,8 +399,8 @@ class IKStepper:
         q_next = problem.step(q, e, J, err)
         if q_next is None:
             q_next = problem.clip(q.copy())
-        r = e - J @ (q_next - q)
-        return q_next, math.sqrt(r @ r)
+        r = e - J.dot(q_next - q)
+        return q_next, math.sqrt(r.dot(r))
 
 
 def ik_step(

@@ -9,6 +9,7 @@ import numpy as np
 from ..exceptions import SpecError
 from .base import TaskMap
 from .frames import Frame, FrameCache
+from .velocity import Velocity
 
 
 class Stack(TaskMap):
@@ -20,9 +21,11 @@ class Stack(TaskMap):
     frame's pose and Jacobian is computed once per call.
     """
 
-    #: (y, J, [(part, y rows, J rows)], [(y rows, J rows, first y rows, first J rows)]): the views into
-    #: the last output buffers of the distinct parts, and of each repeated part and its first occurrence.
-    _views: tuple[np.ndarray, np.ndarray, list, list] | None = None
+    #: (y, J, [(part, y rows, J rows)], [(velocity part, its inner map's J rows, y rows, J rows)],
+    #: [(y rows, J rows, first y rows, first J rows)]): views into the last output buffers of the
+    #: parts evaluated on their own, of velocity parts whose inner map is an earlier part, and of each
+    #: repeated part and its first occurrence.
+    _views: tuple[np.ndarray, np.ndarray, list, list, list] | None = None
 
     def __init__(self, parts: Iterable[TaskMap]):
         flat: list[TaskMap] = []
@@ -63,15 +66,26 @@ class Stack(TaskMap):
             views = self._views = self._slice(y, J)
         for part, y_part, J_part in views[2]:
             part.evaluate(cache, y_part, J_part)
-        for y_part, J_part, y_first, J_first in views[3]:
+        for part, J_map, y_part, J_part in views[3]:
+            part.evaluate_from(J_map, cache, y_part, J_part)
+        for y_part, J_part, y_first, J_first in views[4]:
             y_part[:] = y_first
             J_part[:] = J_first
 
     def _slice(self, y: np.ndarray, J: np.ndarray) -> tuple:
         rows = [(y[s], J[s]) for s in self._spans]
-        distinct = [(p, *rows[i]) for i, p in enumerate(self.parts) if self._first[i] == i]
+        first_rows = {p.spec: rows[i] for i, p in enumerate(self.parts) if self._first[i] == i}
+        own, velocities = [], []
+        for i, p in enumerate(self.parts):
+            if self._first[i] != i:
+                continue
+            inner = first_rows.get(p.map.spec) if isinstance(p, Velocity) else None
+            if inner is not None:  # evaluated on its own (a velocity map never is an inner map), first
+                velocities.append((p, inner[1], *rows[i]))
+            else:
+                own.append((p, *rows[i]))
         repeated = [(*rows[i], *rows[f]) for i, f in enumerate(self._first) if f != i]
-        return y, J, distinct, repeated
+        return y, J, own, velocities, repeated
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)

@@ -33,6 +33,14 @@ class Velocity(TaskMap):
         self.map.evaluate(cache, self._y, J)
         np.dot(J, cache.qvel, out=y)
 
+    def evaluate_from(self, J_map: np.ndarray, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        """`evaluate` given the inner map's Jacobian J_map (dim, nv) at the cached configuration.
+
+        A stack that also holds the inner map passes its rows instead of evaluating the map twice.
+        """
+        J[:] = J_map
+        np.dot(J, cache.qvel, out=y)
+
     def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
         # A jointless frame has zero velocity, so y_dot changes only through J_m.
         if self.map.jacobian_translation_invariant(frame):
