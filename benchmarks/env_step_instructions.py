@@ -82,7 +82,7 @@ def main() -> None:
     for name, count in per_step.items():
         print(f"| {name} | {count:,.0f} |")
     ours, fetch = per_step.values()
-    print(f"\nratio FetchReach-v4 / tsrl: {fetch / ours:.2f}x fewer instructions per step in ours")
+    print(f"\nratio FetchReach-v4 / tsrl: {fetch / ours:.2f}x (instructions per step)")
 
 
 if __name__ == "__main__":
