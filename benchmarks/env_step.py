@@ -66,18 +66,28 @@ def breakdown(env: gym.Env, steps: int, seed: int) -> dict[str, float]:
     return us
 
 
+#: The compared environments: name in the tables -> (gym id, make kwargs).
+ENVS = {
+    "tsrl/UR5eReach-v0 (fs2, taskspace)": ("tsrl/UR5eReach-v0", {"obs": "fs2", "action": "taskspace"}),
+    "FetchReach-v4": ("FetchReach-v4", {}),
+}
+
+
+def make_env(name: str) -> gym.Env:
+    """The environment called `name` in ENVS (FetchReach-v4 with its mujoco-4 patch registered)."""
+    register_fetch_envs()
+    env_id, kwargs = ENVS[name]
+    return gym.make(env_id, **kwargs)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds")
     parser.add_argument("--episodes", type=int, default=10, help="50-step episodes per env per round")
     args = parser.parse_args()
 
-    register_fetch_envs()
-    ours_name, fetch_name = "tsrl/UR5eReach-v0 (fs2, taskspace)", "FetchReach-v4"
-    envs = {
-        ours_name: gym.make("tsrl/UR5eReach-v0", obs="fs2", action="taskspace"),
-        fetch_name: gym.make("FetchReach-v4"),
-    }
+    ours_name, fetch_name = ENVS
+    envs = {name: make_env(name) for name in ENVS}
     # Episodes alternate one by one, so a change in the machine's speed hits both alike.
     times: dict[str, list[list[float]]] = {name: [] for name in envs}
     for r in range(args.rounds):

@@ -21,26 +21,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-ENVS = {
-    "tsrl/UR5eReach-v0 (fs2, taskspace)": "tsrl",
-    "FetchReach-v4": "fetch",
-}
 
-
-def run_steps(which: str, steps: int) -> None:
-    """Resets once and takes `steps` random-action steps (resetting at episode ends)."""
-    import gymnasium as gym
+def run_steps(name: str, steps: int) -> None:
+    """Resets env_step.ENVS[name] once and takes `steps` random-action steps (resetting at episode ends)."""
     import numpy as np
+    from env_step import make_env
 
-    if which == "fetch":
-        from fetch_compat import register_fetch_envs
-
-        register_fetch_envs()
-        env = gym.make("FetchReach-v4")
-    else:
-        import tsrl  # noqa: F401  (registers tsrl/UR5eReach-v0)
-
-        env = gym.make("tsrl/UR5eReach-v0", obs="fs2", action="taskspace")
+    env = make_env(name)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, *env.action_space.shape)).astype(np.float32)
     env.reset(seed=0)
     for a in actions:
@@ -50,11 +37,11 @@ def run_steps(which: str, steps: int) -> None:
     env.close()
 
 
-def instructions(which: str, steps: int) -> int:
+def instructions(name: str, steps: int) -> int:
     """Instructions callgrind counts for a whole child process that takes `steps` steps."""
     env = os.environ | {"OPENBLAS_NUM_THREADS": "1", "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null"]
-    cmd += [sys.executable, __file__, "--child", which, str(steps)]
+    cmd += [sys.executable, __file__, "--child", name, str(steps)]
     out = subprocess.run(cmd, env=env, cwd=Path(__file__).parent, capture_output=True, text=True, check=True)
     match = re.search(r"I\s+refs:\s*([\d,]+)", out.stderr)
     if match is None:
@@ -73,9 +60,11 @@ def main() -> None:
     if shutil.which("valgrind") is None:
         sys.exit("valgrind is not installed (Debian: apt-get install valgrind)")
     n = args.steps
+    from env_step import ENVS
+
     per_step = {}
-    for name, which in ENVS.items():
-        per_step[name] = (instructions(which, 4 * n) - instructions(which, n)) / (3 * n)
+    for name in ENVS:
+        per_step[name] = (instructions(name, 4 * n) - instructions(name, n)) / (3 * n)
         print(f"measured {name}", file=sys.stderr, flush=True)
     print(f"\nInstructions per step (callgrind, {3 * n} random-action steps, start-up excluded):\n")
     print("| environment | instructions per step |\n| --- | ---: |")

@@ -21,7 +21,7 @@ from ..assets import load_model
 from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
 from ..exceptions import InvalidAction, InvalidConfig
 from ..ik import IKStepper, solve_ik
-from ..kinematics import arm_qpos_indices, name_to_id
+from ..kinematics import arm_qpos_indices, as_slice, name_to_id
 from ..taskmaps import OBS_PRESETS, Stack, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
 
@@ -37,12 +37,6 @@ _BADQACC, _BADQVEL, _BADQPOS = (
         mujoco.mjtWarning.mjWARN_BADQPOS,
     )
 )
-
-
-def _as_slice(indices: list[int]) -> slice | np.ndarray:
-    """The indices as a slice where they are consecutive (numpy then views instead of copying), else an array."""
-    consecutive = indices == list(range(indices[0], indices[0] + len(indices)))
-    return slice(indices[0], indices[-1] + 1) if consecutive else np.array(indices)
 
 
 def checked_action(action: ArrayLike, space: spaces.Box) -> np.ndarray:
@@ -112,8 +106,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self.data = mujoco.MjData(self.model)
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(self.control_dt / self.model.opt.timestep)
-        self._arm_qpos = _as_slice(arm_qpos_indices(self.model).tolist())
-        self._arm_ctrl = _as_slice([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
+        self._arm_qpos = as_slice(arm_qpos_indices(self.model))
+        self._arm_ctrl = as_slice([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
         self._suction_ctrl = (
             name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
         )
@@ -139,7 +133,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         # The IK map's rows: a slice where they follow one another in the stack, else gathered each step.
         self._ik_rows: slice | np.ndarray | None = None
         if self.ik_map is not None:
-            self._ik_rows = _as_slice(
+            self._ik_rows = as_slice(
                 [i for p in self.ik_map.parts for i in range(rows[p.spec].start, rows[p.spec].stop)]
             )
         # Set by _evaluate: the stack's output buffers and views of their rows (observation, achieved

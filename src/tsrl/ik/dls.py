@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 
 from ..assets.ur5e import JOINT_NAMES
 from ..exceptions import InvalidConfig
-from ..kinematics import name_to_id
+from ..kinematics import as_slice, name_to_id
 from ..taskmaps.base import TaskMap, TaskMapValue
 from ..taskmaps.orientation import Quaternion
 from ..taskmaps.stack import Stack
@@ -128,10 +128,8 @@ class _Joints:
                 raise InvalidConfig(f"joint {n!r} is not a hinge or slide joint; the IK moves only those")
         qadr = np.array([model.jnt_qposadr[j] for j in ids])
         dadr = np.array([model.jnt_dofadr[j] for j in ids])
-        n = len(ids)
-        contiguous = np.array_equal(qadr, np.arange(qadr[0], qadr[0] + n))
         #: qpos entries of the joints: a slice where they are contiguous (faster to read and write).
-        self.qsel: slice | np.ndarray = slice(int(qadr[0]), int(qadr[0]) + n) if contiguous else qadr
+        self.qsel = as_slice(qadr)
         #: Columns of J to keep; None where the joints' dofs are all of J's columns, in order.
         self.dadr = None if np.array_equal(dadr, np.arange(model.nv)) else dadr
         limited = np.array([bool(model.jnt_limited[j]) for j in ids])

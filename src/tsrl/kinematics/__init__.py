@@ -4,6 +4,7 @@ from .dh import dh_forward, dh_transform
 from .frames import (
     arm_dof_indices,
     arm_qpos_indices,
+    as_slice,
     forward_kinematics,
     name_to_id,
     names,
@@ -14,6 +15,7 @@ from .frames import (
 __all__ = (
     "arm_dof_indices",
     "arm_qpos_indices",
+    "as_slice",
     "dh_forward",
     "dh_transform",
     "forward_kinematics",

@@ -42,6 +42,14 @@ def name_to_id(model: mujoco.MjModel, kind: str, name: str) -> int:
     return idx
 
 
+def as_slice(indices: ArrayLike) -> slice | np.ndarray:
+    """The indices as a slice where they are consecutive and ascending (numpy then views instead of
+    copying), else as an integer array."""
+    idx = [int(i) for i in np.asarray(indices).ravel()]
+    consecutive = idx == list(range(idx[0], idx[0] + len(idx)))
+    return slice(idx[0], idx[-1] + 1) if consecutive else np.array(idx)
+
+
 def arm_qpos_indices(model: mujoco.MjModel) -> np.ndarray:
     """qpos addresses of the six UR5e joints, shape (6,), in JOINT_NAMES order."""
     return np.array([model.jnt_qposadr[name_to_id(model, "joint", n)] for n in JOINT_NAMES])
