@@ -48,17 +48,18 @@ def test_spec_string_observation():
 )
 def test_step_evaluates_each_map_once_and_reads_goals_and_ik_values_off_it(env_id, preset, action):
     env = gym.make(env_id, obs=preset, action=action).unwrapped
-    specs = [p.spec for p in env._step_maps.parts]
+    specs = [p.spec for p in env.plan._maps.parts]
     assert len(specs) == len(set(specs))
     obs = moved_state_observation(env, seed=2)
     model, data = env.model, env.data
-    goals = parse_spec(f"{env.achieved_goal_spec}, position(target)", model)(model, data).y
+    goals = parse_spec(f"{env.task.goal.map}, position(target)", model)(model, data).y
     np.testing.assert_array_equal(obs["achieved_goal"], goals[:3])
     np.testing.assert_array_equal(obs["desired_goal"], goals[3:])
-    if env.ik_map is not None:  # the next IK starts from the ik map's own value at this state
-        expected = env.ik_map(model, data)
-        np.testing.assert_array_equal(env._ik_value.y, expected.y)
-        np.testing.assert_array_equal(env._ik_value.J, expected.J)
+    ik_map = env.action_map.ik_map
+    if ik_map is not None:  # the next IK starts from the ik map's own value at this state
+        expected = ik_map(model, data)
+        np.testing.assert_array_equal(env.plan.ik_value.y, expected.y)
+        np.testing.assert_array_equal(env.plan.ik_value.J, expected.J)
 
 
 def moved_state_observation(env, seed, steps=4):

@@ -94,16 +94,5 @@ class Stack(TaskMap):
             out[..., span] = part.difference(a[..., span], b[..., span])
         return out
 
-    def translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        y = np.array(y, dtype=np.float64)
-        if frame not in self.frames:
-            return y
-        for part, span in zip(self.parts, self._spans):
-            y[..., span] = part.translated(y[..., span], frame, delta)
-        return y
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        return all(p.jacobian_translation_invariant(frame) for p in self.parts)
-
     def __len__(self) -> int:
         return len(self.parts)
