@@ -14,6 +14,7 @@ SCENES: dict[str, str] = {
     "ur5e": "ur5e/ur5e.xml",
     "reach": "scenes/reach.xml",
     "pick_place": "scenes/pick_place.xml",
+    "obstacle_reach": "scenes/obstacle_reach.xml",
     "panda": "panda/panda.xml",
     "panda_reach": "scenes/panda_reach.xml",
     "panda_pick_place": "scenes/panda_pick_place.xml",

@@ -40,8 +40,13 @@ class _Rows:
 
     def gather(
         self, y: np.ndarray, out: np.ndarray, J: np.ndarray | None = None, J_out: np.ndarray | None = None
-    ):
-        if isinstance(self.index, slice) and self.width == self.n:
+    ) -> None:
+        """Copies the rows into the buffers `bind` made (nothing to do for views)."""
+        if isinstance(self.index, slice):
+            if self.width != self.n:
+                out[: self.n] = y[self.index]
+                if J is not None:
+                    J_out[:] = J[self.index]
             return
         np.take(y, self.index, out=out[: self.n])
         if J is not None:

@@ -116,14 +116,26 @@ class Randomizer:
     def _place_obstacle(
         self, data: mujoco.MjData, rng: np.random.Generator, start: np.ndarray, goal: np.ndarray
     ):
+        """Draws the obstacle until it touches nothing at the start and leaves `goal_clearance` m around the
+        goal (at most `_OBSTACLE_TRIES` draws; the last one stays)."""
         o = self.task.obstacle
         mocap, geom, _ = self._obstacle
-        u = rng.uniform(o.fraction_low, o.fraction_high)
-        center = start + u * (goal - start) + rng.uniform(-o.jitter, o.jitter, 3)
-        radius, half_height = rng.uniform(*o.radius), rng.uniform(*o.half_height)
-        self.model.geom_size[geom, :2] = (radius, half_height)
-        self.model.geom_rbound[geom] = math.hypot(radius, half_height)
-        data.mocap_pos[mocap] = center
+        for _ in range(_OBSTACLE_TRIES):
+            u = rng.uniform(o.fraction_low, o.fraction_high)
+            center = start + u * (goal - start) + rng.uniform(-o.jitter, o.jitter, 3)
+            radius, half_height = rng.uniform(*o.radius), rng.uniform(*o.half_height)
+            self.model.geom_size[geom, :2] = (radius, half_height)
+            self.model.geom_rbound[geom] = math.hypot(radius, half_height)
+            data.mocap_pos[mocap] = center
+            mujoco.mj_kinematics(self.model, data)
+            mujoco.mj_collision(self.model, data)
+            touches = any(geom in c.geom for c in data.contact[: data.ncon])
+            if not touches and np.linalg.norm((goal - center)[:2]) >= radius + o.goal_clearance:
+                return
+
+
+#: Draws of the obstacle before the last one is kept (each draw checks contacts and the goal's room).
+_OBSTACLE_TRIES = 20
 
 
 def _sample_box(rng: np.random.Generator, center, half_extent) -> np.ndarray:

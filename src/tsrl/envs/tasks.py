@@ -139,7 +139,9 @@ class ObstacleSampler:
 
     Its centre is start + u (goal - start), u uniform in [fraction_low, fraction_high], plus a
     uniform offset of +-jitter [m] per axis; its geom's radius and half-height are uniform in
-    their ranges. Goals closer to the start than `min_goal_distance` are drawn again.
+    their ranges; it is drawn again while it touches anything at the start or its axis passes
+    within radius + `goal_clearance` [m] of the goal (horizontally). Goals closer to the start than
+    `min_goal_distance` are drawn again.
 
     Attributes:
         body: the mocap body; geom: its collision geom (a cylinder or box).
@@ -153,6 +155,7 @@ class ObstacleSampler:
     radius: tuple[float, float] = (0.03, 0.05)
     half_height: tuple[float, float] = (0.04, 0.08)
     min_goal_distance: float = 0.15
+    goal_clearance: float = 0.08
 
 
 @dataclass(frozen=True)
@@ -205,6 +208,8 @@ class Task:
 BUILTIN_TASKS: dict[str, str] = {
     "UR5eReach-v0": "reach.toml",
     "UR5ePickPlace-v0": "pick_place.toml",
+    "UR5ePoseReach-v0": "pose_reach.toml",
+    "UR5eObstacleReach-v0": "obstacle_reach.toml",
 }
 
 
