@@ -62,7 +62,7 @@ def test_solver_difference_gives_the_maps_own_numbers(reach_model, spec, rng):
 def test_recovers_known_positions(ur5e, rng):
     model, data = ur5e
     task_map = parse_spec("position(tcp)", model)
-    for q in random_configurations(rng, 10):
+    for q in random_configurations(model, rng, 10):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, task_map, target)
@@ -74,7 +74,7 @@ def test_recovers_known_positions(ur5e, rng):
 def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
     """Targets anywhere in the joint range, any IK branch: the restarts find one."""
     model, data = ur5e
-    for q in random_configurations(rng, 30):
+    for q in random_configurations(model, rng, 30):
         target = target_at(model, pose_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, pose_map, target, tol=5e-5)
@@ -86,7 +86,7 @@ def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
 
 def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, rng):
     model, data = ur5e
-    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
     result = solve_ik(model, data, pose_map, target)
     np.testing.assert_array_equal(data.qpos[:6], result.q)
     np.testing.assert_allclose(pose_map(model, data).y, target_at(model, pose_map, result.q), atol=1e-12)
@@ -94,7 +94,7 @@ def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, r
 
 def test_is_deterministic(ur5e, pose_map, rng):
     model, data = ur5e
-    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
     first = solve_ik(model, data, pose_map, target)
     forward_kinematics(model, data, HOME_Q)
     second = solve_ik(model, data, pose_map, target)
@@ -156,7 +156,7 @@ def test_stacked_position_and_alignment_targets_are_met(ur5e, rng):
     model, data = ur5e
     task_map = parse_spec(ALIGNMENT, model)
     assert task_map.dim == 6
-    for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(rng, 5)]):
+    for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(model, rng, 5)]):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, task_map, target)
@@ -208,7 +208,7 @@ def test_joint_limits_hold_on_every_iterate(ur5e, rng):
     result = solve_ik(model, data, recorder, beyond, restarts=0)
     np.testing.assert_allclose(result.q, np.clip(beyond, *JOINT_LIMITS.T))
     pose = Recording(parse_spec(POSE, model))
-    for q in random_configurations(rng, 5):
+    for q in random_configurations(model, rng, 5):
         forward_kinematics(model, data, HOME_Q)
         solve_ik(model, data, pose, target_at(model, pose.inner, q))
     assert len(recorder.qpos) > 1 and len(pose.qpos) > 20
@@ -233,7 +233,7 @@ def test_free_box_in_pick_place_never_moves(pick_place_model, rng):
     data.qpos[box_qpos] = [-0.4, 0.2, 0.3, 0.9, 0.1, 0.3, 0.2]  # an odd, unnormalised pose
     before = data.qpos[box_qpos].copy()
     task_map = Recording(parse_spec(POSE, model))
-    for q in random_configurations(rng, 5):
+    for q in random_configurations(model, rng, 5):
         result = solve_ik(model, data, task_map, target_at(model, task_map.inner, q))
         assert result.converged and result.q.shape == (6,)
     np.testing.assert_array_equal(data.qpos[box_qpos], before)

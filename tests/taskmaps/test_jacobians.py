@@ -18,18 +18,20 @@ from .conftest import CONTACT_MAPS, example_spec, finite_difference_jacobian, se
 CONTACT_ATOL = 5e-4
 
 
-def _configurations(name: str, rng: np.random.Generator, pressed_q: np.ndarray) -> tuple[np.ndarray, float]:
+def _configurations(
+    name: str, model: mujoco.MjModel, rng: np.random.Generator, pressed_q: np.ndarray
+) -> tuple[np.ndarray, float]:
     """Configurations at which to test the map `name`, and the tolerance there."""
     if name in CONTACT_MAPS:  # near the pressed pose, where the contact is smooth
         return pressed_q + rng.uniform(-0.01, 0.01, size=(3, 6)), CONTACT_ATOL
-    return random_configurations(rng, 4), 1e-6
+    return random_configurations(model, rng, 4), 1e-6
 
 
 @pytest.mark.parametrize("name", [n for n in known_maps() if n != "velocity"])
 def test_jacobian_matches_finite_differences(name, ur5e, rng, pressed_q):
     model, data = ur5e
     task_map = parse_spec(example_spec(name), model)
-    qs, atol = _configurations(name, rng, pressed_q)
+    qs, atol = _configurations(name, model, rng, pressed_q)
     for q in qs:
         forward_kinematics(model, data, q)
         J = task_map(model, data).J
@@ -40,7 +42,7 @@ def test_distance_jacobian_is_exact_with_analytic_witness_points(ur5e, rng):
     model, data = ur5e
     task_map = parse_spec("distance(forearm_tube, table)", model)  # capsule-box: closed-form points
     signs = set()
-    for q in random_configurations(rng, 30):
+    for q in random_configurations(model, rng, 30):
         forward_kinematics(model, data, q)
         y, J = task_map(model, data)
         if abs(y[0]) < 1e-3:  # too close to touching for central differences
@@ -63,7 +65,7 @@ def test_contact_maps_are_tested_in_contact(ur5e, pressed_q):
 def test_world_and_flange_frames_match_finite_differences(spec, ur5e, rng):
     model, data = ur5e
     task_map = parse_spec(spec, model)
-    for q in random_configurations(rng, 3):
+    for q in random_configurations(model, rng, 3):
         forward_kinematics(model, data, q)
         np.testing.assert_allclose(
             task_map(model, data).J, finite_difference_jacobian(task_map, model, data), atol=1e-6
@@ -76,7 +78,7 @@ def test_velocity_value_matches_finite_differences_in_time(inner, ur5e, rng, pre
     velocity = parse_spec(f"velocity({example_spec(inner)})", model)
     position = parse_spec(example_spec(inner), model)
     dt = 1e-6
-    qs, atol = _configurations(inner, rng, pressed_q)
+    qs, atol = _configurations(inner, model, rng, pressed_q)
     for q in qs:
         forward_kinematics(model, data, q)
         data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
@@ -96,7 +98,7 @@ def test_velocity_value_matches_finite_differences_in_time(inner, ur5e, rng, pre
 def test_velocity_jacobian_is_the_inner_jacobian_d_ydot_d_qdot(inner, ur5e, rng):
     model, data = ur5e
     velocity, inner_map = parse_spec(f"velocity({inner})", model), parse_spec(inner, model)
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
     J = velocity(model, data).J
     np.testing.assert_array_equal(J, inner_map(model, data).J)
