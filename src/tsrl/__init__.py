@@ -8,7 +8,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from .assets import SCENES, load_model
 from .envs import ENV_IDS, register_envs
 from .exceptions import ModelLoadError, TsrlError, UnknownName, UnknownScene
-from .ik import IKResult, solve_ik
+from .ik import DlsSolver, IKOptions, IKResult
 from .kinematics import dh_forward, forward_kinematics
 from .taskmaps import OBS_PRESETS, TaskMap, TaskMapValue, parse_spec
 
@@ -20,6 +20,8 @@ __all__ = (
     "ENV_IDS",
     "OBS_PRESETS",
     "SCENES",
+    "DlsSolver",
+    "IKOptions",
     "IKResult",
     "ModelLoadError",
     "TaskMap",
@@ -31,5 +33,4 @@ __all__ = (
     "forward_kinematics",
     "load_model",
     "parse_spec",
-    "solve_ik",
 )

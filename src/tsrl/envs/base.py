@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from ..assets import load_model
 from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
 from ..exceptions import InvalidAction, InvalidConfig
-from ..ik import IKStepper, solve_ik
+from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_qpos_indices, as_slice, name_to_id
 from ..taskmaps import OBS_PRESETS, Stack, TaskMapValue, parse_spec
 from .actions import ACTION_MODES, ActionConfig
@@ -117,7 +117,9 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         self.obs_map = parse_spec(self.obs_spec, self.model)
         ik_spec = self.action_config.ik_spec
         self.ik_map = parse_spec(ik_spec, self.model) if ik_spec else None
-        self._ik_step = IKStepper(self.model, self.ik_map) if ik_spec else None
+        # One solver: a single step per period, or a local solve (no restarts) of ik_iterations steps.
+        ik_options = IKOptions(max_iters=ik_iterations, restarts=0)
+        self._ik = DlsSolver(self.model, self.ik_map, JOINT_NAMES, ik_options) if ik_spec else None
         # Every map a step needs, in one stack evaluated once per step: the observation's maps, then
         # those of the IK and the goals that the observation lacks (a map already there is read there).
         achieved, desired = parse_spec(
@@ -324,15 +326,7 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         target = self._ik_target
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
             # Its inputs come from the step's own maps and state (finite: a blow-up ends the episode).
-            return self._ik_step.step_from(self._qpos[self._arm_qpos], initial, target)
+            return self._ik.step(self._qpos[self._arm_qpos], initial, target)
         self._ik_data.qpos[:] = self.data.qpos
-        result = solve_ik(  # a local solve from the current pose: no restarts
-            self.model,
-            self._ik_data,
-            self.ik_map,
-            target,
-            initial_value=initial,
-            max_iters=self.ik_iterations,
-            restarts=0,
-        )
+        result = self._ik.solve(self._ik_data, target, initial)  # a local solve from the current pose
         return result.q, result.error_norm
