@@ -385,4 +385,3 @@ class DlsSolver:
 
     def __repr__(self) -> str:
         return f"<DlsSolver {self.task_map.spec} over {', '.join(self.joints)}>"
-

@@ -49,7 +49,7 @@ def name_to_id(model: mujoco.MjModel, kind: str, name: str) -> int:
     """Id of the named object; raises UnknownName listing the model's objects of that kind."""
     idx = mujoco.mj_name2id(model, _OBJECT_KINDS[kind], name)
     if idx < 0:
-        raise UnknownName(kind, name, names(model, kind))
+        raise UnknownName("keyframe" if kind == "key" else kind, name, names(model, kind))
     return idx
 
 
