@@ -377,7 +377,35 @@ class DlsSolver:
         if norm > opts.max_step:
             dq *= opts.max_step / norm
         dq += q
-        return self._clip(dq)
+        q_next = self._clip(dq.copy())
+        if (q_next != dq).any():  # a joint would leave its range: hold it there, move the others
+            return self._clamped(q, q_next, e, J, lam, d, dq)
+        return q_next
+
+    def _clamped(self, q, q_next, e, J, lam, d, unclipped) -> np.ndarray:
+        """The step with the joints that leave their range held at the limit they cross and the task
+        (and posture) met by the others: dq_free = DLS(J_free, e - J_held dq_held); repeated while
+        another joint leaves its range. q + dq, ||dq|| <= max_step, within the limits."""
+        free = q_next == unclipped
+        for _ in range(free.size):
+            if not free.any():
+                break
+            held = ~free
+            dq = q_next - q  # held joints: to their limit
+            e_free = e - J[:, held] @ dq[held]
+            J_free = np.ascontiguousarray(J[:, free])
+            d_free = None if d is None else d[free]
+            dq[free] = _dls(J_free, e_free, lam, d_free, _Workspace(min(J_free.shape)))
+            norm = math.sqrt(dq.dot(dq))
+            if norm > self.options.max_step:
+                dq *= self.options.max_step / norm
+            unclipped = q + dq
+            q_next = self._clip(unclipped.copy())
+            leaving = q_next != unclipped
+            if not leaving.any():
+                break
+            free &= ~leaving
+        return q_next
 
     def _clip(self, q: np.ndarray) -> np.ndarray:
         """q clipped to the joint limits, in place."""
