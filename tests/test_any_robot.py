@@ -262,7 +262,9 @@ def test_robot_from_the_model(arm):
     robot = Robot.from_model(arm, tcp="tool", home="rest", name="planar4")
     assert robot.joints == JOINTS and robot.actuators == ("a1", "a2", "a3", "a4")
     np.testing.assert_array_equal(robot.home_q(arm), REST)
-    with pytest.raises(UnknownName, match="unknown site 'tcp'; the model's sites: tool"):
+    with pytest.raises(
+        UnknownName, match="unknown frame 'tcp'; the model's frames: ball, link1, .*, tool, world"
+    ):
         Robot.from_model(arm, tcp="tcp")
     with pytest.raises(UnknownName, match="unknown keyframe 'home'; the model's keyframes: rest"):
         Robot.from_model(arm, tcp="tool", home="home")

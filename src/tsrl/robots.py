@@ -14,7 +14,7 @@ or from a few lines of TOML (`load_robot("arm3.toml")`; paths are relative to th
     name = "arm3"
     model = "arm3.xml"                  # MJCF (.xml) or URDF (.urdf)
     joints = ["j1", "j2", "j3"]
-    tcp = "tool"                        # a site
+    tcp = "tool"                        # a site (or a body)
     home = "home"                       # optional keyframe
     actuators = ["a1", "a2", "a3"]      # optional position servos, one per joint
 """
@@ -33,6 +33,7 @@ import numpy as np
 from .assets import SCENES, load_model, ur5e
 from .exceptions import InvalidConfig, ModelLoadError, UnknownName
 from .kinematics import arm_qpos_indices, controlled_joints, name_to_id
+from .taskmaps import resolve_frame
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
@@ -49,7 +50,7 @@ class Robot:
     joints: tuple[str, ...]
     """Controlled hinge or slide joints, base to tip: the order of q, of jointState and of the IK."""
     tcp: str
-    """Site at the tool centre point."""
+    """Frame of the tool centre point: a site, else a body (a URDF file has bodies only)."""
     home: str | None = None
     """Keyframe of the home (rest) configuration."""
     actuators: tuple[str, ...] = ()
@@ -132,13 +133,13 @@ class Robot:
         """Checks every name against `model`; returns self.
 
         Raises:
-            UnknownName: a joint, site, keyframe or actuator the model lacks (the message lists the
-                model's names of that kind).
+            UnknownName: a joint, TCP frame, keyframe or actuator the model lacks (the message lists
+                the model's names of that kind: sites and bodies for the TCP).
             InvalidConfig: a joint that is not a hinge or slide joint, or an actuator that is not a
                 position servo of its joint.
         """
         controlled_joints(model, self.joints)
-        name_to_id(model, "site", self.tcp)
+        resolve_frame(model, self.tcp)
         if self.home is not None:
             name_to_id(model, "key", self.home)
         for actuator, joint in zip(self.actuators, self.joints):
