@@ -11,7 +11,7 @@ import numpy as np
 
 from tsrl.assets.ur5e import HOME_Q
 from tsrl.envs import load_task
-from tsrl.ik import solve_ik
+from tsrl.ik import DlsSolver
 from tsrl.kinematics import forward_kinematics
 from tsrl.taskmaps import parse_spec
 
@@ -29,7 +29,7 @@ def test_home_tcp_constant_matches_forward_kinematics(ur5e):
 def reach_cup_down(model, data, goal):
     task = parse_spec("position(tcp), vectorZ(tcp)", model)
     forward_kinematics(model, data, HOME_Q)
-    result = solve_ik(model, data, task, np.concatenate([goal, [0.0, 0.0, -1.0]]))
+    result = DlsSolver(model, task).solve(data, np.concatenate([goal, [0.0, 0.0, -1.0]]))
     mujoco.mj_kinematics(model, data)
     return result, data.site("tcp").xpos.copy()
 

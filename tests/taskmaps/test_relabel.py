@@ -66,7 +66,7 @@ def _move(model, data, delta, quat=None, known=FRAMES) -> FrameMove:
 def moving_arm(ur5e, rng):
     """The reach scene at a random configuration with random joint velocities."""
     model, data = ur5e
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
     return model, data
 

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike
 
 from ..assets.ur5e import HOME_KEY, JOINT_NAMES, SUCTION_ACTUATOR
 from ..exceptions import InvalidAction, InvalidConfig
-from ..ik import IKStepper, solve_ik
+from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_qpos_indices, as_slice, name_to_id
 from ..taskmaps import OBS_PRESETS, Stack
 from ..taskmaps.relabel import relabelled
@@ -136,7 +136,9 @@ class TaskEnv(gym.Env, EzPickle):
         self._home_key = name_to_id(self.model, "key", HOME_KEY)
         self.plan = StepPlan(self.model, self.obs_spec, task, self.action_map.ik_map)
         self.randomizer = Randomizer(self.model, task)
-        self._ik_step = IKStepper(self.model, self.action_map.ik_map) if self.action_map.ik_map else None
+        # One solver: a single step per period, or a local solve (no restarts) of ik_iterations steps.
+        ik_map, ik_options = self.action_map.ik_map, IKOptions(max_iters=ik_iterations, restarts=0)
+        self._ik = DlsSolver(self.model, ik_map, JOINT_NAMES, ik_options) if ik_map else None
         # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
@@ -301,7 +303,7 @@ class TaskEnv(gym.Env, EzPickle):
 
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Servo targets (n,) for action `a`, and the IK residual (0 for joint actions)."""
-        if self._ik_step is None:
+        if self._ik is None:
             q = self._qpos[self._arm_qpos]
             n = len(q)
             step = self.action_map.spec.joint_step
@@ -312,17 +314,9 @@ class TaskEnv(gym.Env, EzPickle):
         target = self.action_map.ik_target(a, initial.y)
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
             # Its inputs come from the step's own maps and state (finite: a blow-up ends the episode).
-            return self._ik_step.step_from(self._qpos[self._arm_qpos], initial, target)
+            return self._ik.step(self._qpos[self._arm_qpos], initial, target)
         self._ik_data.qpos[:] = self.data.qpos
-        result = solve_ik(  # a local solve from the current pose: no restarts
-            self.model,
-            self._ik_data,
-            self.action_map.ik_map,
-            target,
-            initial_value=initial,
-            max_iters=self.ik_iterations,
-            restarts=0,
-        )
+        result = self._ik.solve(self._ik_data, target, initial)  # a local solve from the current pose
         return result.q, result.error_norm
 
     def _check_ik_reaches_home_targets(self) -> None:
@@ -336,7 +330,7 @@ class TaskEnv(gym.Env, EzPickle):
         mujoco.mj_resetDataKeyframe(self.model, data, self._home_key)
         mujoco.mj_kinematics(self.model, data)
         mujoco.mj_comPos(self.model, data)
-        result = solve_ik(self.model, data, held, target)
+        result = DlsSolver(self.model, held, JOINT_NAMES).solve(data, target)
         if not result.converged:
             raise InvalidConfig(
                 f"the IK cannot hold {held.spec} at {target.round(3).tolist()} (residual {result.error_norm:.3g} "

@@ -13,9 +13,16 @@ AXES = "XYZ"
 
 
 def _aligned_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a - s b with s = sign(a . b) per row, so that q and -q (one orientation) are not far apart."""
-    s = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
-    return a - s * b
+    """a - s b with s = sign(a . b) per row (1 at 0), so that q and -q (one orientation) are not far apart.
+
+    a - (-1) b is a + b exactly, so the two branches are the formula itself; `Stack.difference`
+    inlines the one-row case.
+    """
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if a.ndim == 1 and b.ndim == 1:
+        return a + b if a.dot(b) < 0.0 else a - b
+    dots = np.einsum("...i,...i->...", a, b)[..., None]
+    return np.where(dots < 0.0, a + b, a - b)
 
 
 class Quaternion(TaskMap):
