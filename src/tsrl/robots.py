@@ -30,7 +30,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .assets import SCENES, load_model, ur5e
+from .assets import SCENES, load_model, panda, ur5e
 from .exceptions import InvalidConfig, ModelLoadError, UnknownName
 from .kinematics import arm_qpos_indices, controlled_joints, name_to_id
 from .taskmaps import resolve_frame
@@ -195,7 +195,15 @@ ROBOTS: dict[str, Robot] = {
         actuators=ur5e.JOINT_NAMES,  # each joint's servo carries the joint's name
         suction=ur5e.SUCTION_ACTUATOR,
     ),
-    # "panda": the Franka Emika Panda (issue 15), added with its model in tsrl/assets/panda.
+    "panda": Robot(
+        name="panda",
+        model="panda",
+        joints=panda.JOINT_NAMES,
+        tcp=panda.TCP_SITE,
+        home=panda.HOME_KEY,
+        actuators=panda.JOINT_NAMES,
+        suction=panda.SUCTION_ACTUATOR,
+    ),
 }
 
 

@@ -2,6 +2,7 @@
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import tsrl  # noqa: F401
 from tsrl.assets import load_model
@@ -52,8 +53,9 @@ class ScriptedPickPlace:
         return np.append(action, suction)
 
 
-def test_scripted_controller_solves_pick_and_place():
-    env = gym.make("tsrl/UR5ePickPlace-v0", obs=SPEC)
+@pytest.mark.parametrize("env_id", ["tsrl/UR5ePickPlace-v0", "tsrl/PandaPickPlace-v0"])
+def test_scripted_controller_solves_pick_and_place(env_id):
+    env = gym.make(env_id, obs=SPEC)
     slices = env.unwrapped.observation_structure
     max_step = env.unwrapped.task.action_spec.parts[0].step
     successes = 0

@@ -143,14 +143,15 @@ def test_collision_penalty_stays_exact_under_relabelling():
 
 
 @pytest.mark.parametrize(
-    ("env_id", "solver", "episodes", "at_least"),
+    ("env_id", "solver"),
     [
-        ("tsrl/UR5ePoseReach-v0", PoseReachSolver, 100, 99),
-        # short of the 99 %: the arm's wrist sometimes pins against the obstacle near the goal
-        ("tsrl/UR5eObstacleReach-v0", ObstacleReachSolver, 100, 96),
+        ("tsrl/UR5ePoseReach-v0", PoseReachSolver),
+        ("tsrl/PandaPoseReach-v0", PoseReachSolver),
+        ("tsrl/UR5eObstacleReach-v0", ObstacleReachSolver),
+        ("tsrl/PandaObstacleReach-v0", ObstacleReachSolver),
     ],
 )
-def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes, at_least):
+def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes=100, at_least=99):
     env = gym.make(env_id)
     s = solver(env.unwrapped)
     successes = 0

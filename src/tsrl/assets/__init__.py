@@ -18,6 +18,7 @@ SCENES: dict[str, str] = {
     "panda": "panda/panda.xml",
     "panda_reach": "scenes/panda_reach.xml",
     "panda_pick_place": "scenes/panda_pick_place.xml",
+    "panda_obstacle_reach": "scenes/panda_obstacle_reach.xml",
 }
 
 

@@ -20,10 +20,10 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 from numpy.typing import ArrayLike
 
-from ..assets.ur5e import HOME_KEY, JOINT_NAMES, SUCTION_ACTUATOR
 from ..exceptions import InvalidAction, InvalidConfig
 from ..ik import DlsSolver, IKOptions
-from ..kinematics import arm_qpos_indices, as_slice, name_to_id
+from ..kinematics import arm_qpos_indices, as_slice, joint_limits, name_to_id
+from ..robots import Robot, load_robot
 from ..taskmaps import OBS_PRESETS, Stack
 from ..taskmaps.relabel import relabelled
 from .actions import ACTION_PRESETS, ActionMap
@@ -126,19 +126,32 @@ class TaskEnv(gym.Env, EzPickle):
             raise InvalidConfig(
                 f"control_dt {task.control_dt} s is not a multiple of the scene's timestep {self.model.opt.timestep} s"
             )
-        self._arm_qpos = as_slice(arm_qpos_indices(self.model))
-        self._arm_ctrl = as_slice([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
-        self._joint_range = self.model.jnt_range[[name_to_id(self.model, "joint", n) for n in JOINT_NAMES]]
-        self.action_map = ActionMap(task.action_spec, self.model, len(JOINT_NAMES))
+        self.robot: Robot = load_robot(task.robot_path).validate(self.model)
+        joints = self.robot.joints
+        if not self.robot.actuators:
+            raise InvalidConfig(
+                f"robot {self.robot.name!r} has no position servos (actuators); a task needs them"
+            )
+        self._arm_qpos = as_slice(arm_qpos_indices(self.model, joints))
+        self._arm_ctrl = as_slice([name_to_id(self.model, "actuator", n) for n in self.robot.actuators])
+        self._joint_range = joint_limits(self.model, joints)
+        self.action_map = ActionMap(task.action_spec, self.model, len(joints))
+        if task.action_spec.suction and self.robot.suction is None:
+            raise InvalidConfig(
+                f"the task's action has suction, but robot {self.robot.name!r} has no suction actuator"
+            )
         self._suction_ctrl = (
-            name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if task.action_spec.suction else None
+            name_to_id(self.model, "actuator", self.robot.suction) if task.action_spec.suction else None
         )
-        self._home_key = name_to_id(self.model, "key", HOME_KEY)
-        self.plan = StepPlan(self.model, self.obs_spec, task, self.action_map.ik_map)
-        self.randomizer = Randomizer(self.model, task)
+        self._home_key = name_to_id(self.model, "key", self.robot.home) if self.robot.home else None
+        self.plan = StepPlan(self.model, self.obs_spec, task, self.action_map.ik_map, joints)
+        self.randomizer = Randomizer(self.model, task, self.robot)
         # One solver: a single step per period, or a local solve (no restarts) of ik_iterations steps.
-        ik_map, ik_options = self.action_map.ik_map, IKOptions(max_iters=ik_iterations, restarts=0)
-        self._ik = DlsSolver(self.model, ik_map, JOINT_NAMES, ik_options) if ik_map else None
+        # A redundant arm (more than six joints) keeps its elbow near home through the null-space posture.
+        posture = tuple(self.robot.home_q(self.model)) if len(joints) > 6 else None
+        ik_map = self.action_map.ik_map
+        ik_options = IKOptions(max_iters=ik_iterations, restarts=0, posture=posture)
+        self._ik = DlsSolver(self.model, ik_map, joints, ik_options) if ik_map else None
         # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
@@ -179,7 +192,7 @@ class TaskEnv(gym.Env, EzPickle):
     # -- Gymnasium API ----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
+        self._reset_to_home(self.data)
         self.randomizer.randomize(self.data, self.np_random)
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
@@ -297,6 +310,13 @@ class TaskEnv(gym.Env, EzPickle):
     def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
         return self.plan.info(obs["achieved_goal"], obs["desired_goal"]) | {"ik_error": float(ik_error)}
 
+    def _reset_to_home(self, data: mujoco.MjData) -> None:
+        """The home keyframe (the model's default state where the robot names none), at rest."""
+        if self._home_key is None:
+            mujoco.mj_resetData(self.model, data)
+        else:
+            mujoco.mj_resetDataKeyframe(self.model, data, self._home_key)
+
     def _instability_count(self) -> int:
         counts = self._warning_counts.tolist()
         return counts[_BADQACC] + counts[_BADQVEL] + counts[_BADQPOS]
@@ -327,10 +347,10 @@ class TaskEnv(gym.Env, EzPickle):
         held = Stack(self.action_map.ik_map.parts[len(self.action_map.spec.parts) :])
         target = np.concatenate([h.value for h in hold])
         data = self._ik_data
-        mujoco.mj_resetDataKeyframe(self.model, data, self._home_key)
+        self._reset_to_home(data)
         mujoco.mj_kinematics(self.model, data)
         mujoco.mj_comPos(self.model, data)
-        result = DlsSolver(self.model, held, JOINT_NAMES).solve(data, target)
+        result = DlsSolver(self.model, held, self.robot.joints).solve(data, target)
         if not result.converged:
             raise InvalidConfig(
                 f"the IK cannot hold {held.spec} at {target.round(3).tolist()} (residual {result.error_norm:.3g} "

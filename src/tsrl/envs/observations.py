@@ -14,11 +14,11 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..assets.ur5e import TARGET_SITE
 from ..exceptions import InvalidConfig
 from ..kinematics import as_slice
 from ..taskmaps import Position, Quaternion, Stack, TaskMap, TaskMapValue, Velocity, parse_spec
 from ..taskmaps.relabel import FrameMove, FramePose, check_relabelable
+from .scenes import TARGET_SITE
 from .tasks import Penalty, Task
 
 #: The frame that carries the desired goal: the site of the `target` mocap body.
@@ -62,9 +62,11 @@ class StepPlan:
         penalties: (column, Penalty) per penalty map; pose_goal: whether the goal has an orientation.
     """
 
-    def __init__(self, model: mujoco.MjModel, obs_spec: str, task: Task, ik_map: Stack | None):
-        self.obs_map = parse_spec(obs_spec, model)
-        achieved = parse_spec(task.goal.map, model)
+    def __init__(
+        self, model: mujoco.MjModel, obs_spec: str, task: Task, ik_map: Stack | None, joints: tuple[str, ...]
+    ):
+        self.obs_map = parse_spec(obs_spec, model, joints)
+        achieved = parse_spec(task.goal.map, model, joints)
         self.goal_frame = _goal_frame(achieved, task.goal.map)
         self.pose_goal = len(achieved.parts) == 2
         if self.pose_goal and task.goal.orientation is None:
@@ -73,7 +75,7 @@ class StepPlan:
             raise InvalidConfig('[goal.orientation] needs a pose goal: map = "position(f), quaternion(f)"')
         desired_spec = f"position({GOAL_FRAME})" + (f", quaternion({GOAL_FRAME})" if self.pose_goal else "")
         desired = parse_spec(desired_spec, model)
-        penalty_maps = [_penalty_map(p, model) for p in task.success.penalties]
+        penalty_maps = [_penalty_map(p, model, joints) for p in task.success.penalties]
         self.success = task.success
         self._cos_half_tolerance = math.cos(math.radians(task.success.orientation) / 2)
 
@@ -198,8 +200,8 @@ def _goal_frame(achieved: Stack, spec: str) -> str:
     return frame
 
 
-def _penalty_map(penalty: Penalty, model: mujoco.MjModel) -> TaskMap:
-    stack = parse_spec(penalty.map, model)
+def _penalty_map(penalty: Penalty, model: mujoco.MjModel, joints: tuple[str, ...]) -> TaskMap:
+    stack = parse_spec(penalty.map, model, joints)
     if stack.dim != 1 or isinstance(stack.parts[0], Velocity):
         raise InvalidConfig(f"penalty map {penalty.map!r} must be one scalar position-level map (dim 1)")
     m = stack.parts[0]

@@ -7,9 +7,10 @@ import math
 import mujoco
 import numpy as np
 
-from ..assets.ur5e import JOINT_NAMES, TARGET_BODY, TCP_SITE
 from ..exceptions import InvalidConfig
 from ..kinematics import arm_qpos_indices, as_slice, name_to_id
+from ..robots import Robot
+from .scenes import TARGET_BODY
 from .tasks import PositionSampler, Task
 
 
@@ -21,7 +22,7 @@ class Randomizer:
     obstacle.
     """
 
-    def __init__(self, model: mujoco.MjModel, task: Task):
+    def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
         self.model = model
         self.task = task
         self._target_mocap = int(model.body_mocapid[name_to_id(model, "body", TARGET_BODY)])
@@ -32,8 +33,9 @@ class Randomizer:
             if task.goal.orientation
             else None
         )
-        self._arm_qpos = as_slice(arm_qpos_indices(model))
-        self._arm_ctrl = as_slice([name_to_id(model, "actuator", n) for n in JOINT_NAMES])
+        self._arm_qpos = as_slice(arm_qpos_indices(model, robot.joints))
+        self._arm_ctrl = as_slice([name_to_id(model, "actuator", n) for n in robot.actuators])
+        self._n_joints = len(robot.joints)
         self._objects = []
         for obj in task.objects:
             body = name_to_id(model, "body", obj.body)
@@ -48,13 +50,13 @@ class Randomizer:
             if mocap < 0:
                 raise InvalidConfig(f"obstacle body {o.body!r} must be a mocap body")
             geom = name_to_id(model, "geom", o.geom)
-            self._obstacle = (mocap, geom, name_to_id(model, "site", TCP_SITE))
+            self._obstacle = (mocap, geom, name_to_id(model, "site", robot.tcp))
 
     def randomize(self, data: mujoco.MjData, rng: np.random.Generator) -> None:
         """Samples and sets the start state and goal in `data` (after a reset to the home keyframe)."""
         task = self.task
         if task.start_noise > 0:
-            q = data.qpos[self._arm_qpos] + rng.uniform(-task.start_noise, task.start_noise, len(JOINT_NAMES))
+            q = data.qpos[self._arm_qpos] + rng.uniform(-task.start_noise, task.start_noise, self._n_joints)
             data.qpos[self._arm_qpos] = q
             data.ctrl[self._arm_ctrl] = q
         starts = []

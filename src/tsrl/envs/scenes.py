@@ -7,10 +7,12 @@ from pathlib import Path
 import mujoco
 
 from ..assets import SCENES, load_model
-from ..assets.ur5e import TARGET_BODY, TARGET_SITE
 from ..exceptions import InvalidConfig, ModelLoadError
 from .tasks import Task
 
+#: The goal marker every task's scene has (or gets): a mocap body and its site, the frame of the desired goal.
+TARGET_BODY = "target"
+TARGET_SITE = "target"
 #: Model files a task's `scene` may name by path.
 MODEL_SUFFIXES = (".xml", ".urdf")
 

@@ -39,38 +39,31 @@ class PoseReachSolver:
 
 
 class ObstacleReachSolver:
-    """UR5eObstacleReach-v0: around the obstacle's side through a via point `clearance` m beyond its
-    surface (horizontally, perpendicular to the start-goal line), then to the goal."""
+    """Obstacle reach: over the obstacle. The TCP rises to `clearance` m above the obstacle's top (or
+    stays higher), crosses above the goal at that height, then descends onto the goal; the wrist is
+    above the cup, so nothing passes the obstacle below its top."""
 
-    def __init__(self, env: TaskEnv, clearance: float = 0.1):
+    def __init__(self, env: TaskEnv, clearance: float = 0.08):
         self.env = env
         self.clearance = clearance
         self.step = env.task.action_spec.parts[0].step
         o = env.task.obstacle
         self._mocap = int(env.model.body_mocapid[env.model.body(o.body).id])
         self._geom = env.model.geom(o.geom).id
-        self.via: np.ndarray | None = None
+        self.vias: list[np.ndarray] = []
 
     def reset(self, obs: dict[str, np.ndarray]) -> None:
-        """Plans the via point from the TCP's start, the goal and the obstacle."""
-        env = self.env
+        """Plans the via points from the TCP's start, the goal and the obstacle."""
         start, goal = obs["achieved_goal"][:3], obs["desired_goal"][:3]
-        center = env.data.mocap_pos[self._mocap].copy()
-        radius = env.model.geom_size[self._geom, 0]
-        line = goal - start
-        side = np.cross(line, [0.0, 0.0, 1.0])
-        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([1.0, 0.0, 0.0])
-        low, high = env.task.action_spec.parts[0].low, env.task.action_spec.parts[0].high
-        for sign in (1.0, -1.0):
-            self.via = center + sign * (radius + self.clearance) * side
-            if np.all(self.via >= low) and np.all(self.via <= high):
-                break
+        top = self.env.data.mocap_pos[self._mocap, 2] + self.env.model.geom_size[self._geom, 1]
+        height = min(max(start[2], top + self.clearance), self.env.task.action_spec.parts[0].high[2])
+        self.vias = [np.array([*start[:2], height]), np.array([*goal[:2], height])]
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         p = obs["achieved_goal"][:3]
-        if self.via is not None and np.linalg.norm(self.via - p) < 0.03:
-            self.via = None
-        target = obs["desired_goal"][:3] if self.via is None else self.via
+        while self.vias and np.linalg.norm(self.vias[0] - p) < 0.03:
+            self.vias.pop(0)
+        target = self.vias[0] if self.vias else obs["desired_goal"][:3]
         return np.clip((target - p) / self.step, -1.0, 1.0)
 
 

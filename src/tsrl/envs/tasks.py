@@ -21,10 +21,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from ..exceptions import InvalidConfig
+from ..robots import ROBOTS
 from .actions import ACTION_PRESETS, WORKSPACE_HIGH, WORKSPACE_LOW, ActionPart, ActionSpec, HeldPart
-
-#: Robots a task may name (their joints, TCP site, actuators: envs/robot.py).
-ROBOT_NAMES: tuple[str, ...] = ("ur5e",)
 
 
 @dataclass(frozen=True)
@@ -164,7 +162,8 @@ class Task:
 
     Attributes:
         name: the task's name (gym ids of built-in tasks are "tsrl/<name>").
-        robot: a built-in robot (ROBOT_NAMES).
+        robot: a built-in robot (tsrl.robots.ROBOTS) or the path of a robot TOML file (relative to
+            the task file; tsrl.robots.load_robot).
         scene: a built-in scene (tsrl.assets.SCENES) or the path of an MJCF/URDF file (relative to
             the task file); a scene without a `target` body gets one added.
         observation: an observation preset or task-map spec.
@@ -199,6 +198,13 @@ class Task:
         _validate(self)
 
     @property
+    def robot_path(self) -> str | Path:
+        """`robot` as load_robot takes it: a built-in name, or a path resolved against the task file."""
+        if self.robot in ROBOTS or self.source is None or Path(self.robot).is_absolute():
+            return self.robot
+        return self.source.parent / self.robot
+
+    @property
     def action_spec(self) -> ActionSpec:
         """The action as an ActionSpec (a built-in mode resolved)."""
         return ACTION_PRESETS[self.action] if isinstance(self.action, str) else self.action
@@ -210,6 +216,10 @@ BUILTIN_TASKS: dict[str, str] = {
     "UR5ePickPlace-v0": "pick_place.toml",
     "UR5ePoseReach-v0": "pose_reach.toml",
     "UR5eObstacleReach-v0": "obstacle_reach.toml",
+    "PandaReach-v0": "panda_reach.toml",
+    "PandaPickPlace-v0": "panda_pick_place.toml",
+    "PandaPoseReach-v0": "panda_pose_reach.toml",
+    "PandaObstacleReach-v0": "panda_obstacle_reach.toml",
 }
 
 
@@ -312,8 +322,8 @@ def _value(hint: Any, value: Any, key: str) -> Any:
 
 # -- validation without a model ----------------------------------------------------------------------
 def _validate(task: Task) -> None:
-    if task.robot not in ROBOT_NAMES:
-        raise InvalidConfig(f"robot = {task.robot!r}; accepted: {', '.join(ROBOT_NAMES)}")
+    if task.robot not in ROBOTS and not task.robot.endswith(".toml"):
+        raise InvalidConfig(f"robot = {task.robot!r}; accepted: {', '.join(ROBOTS)} or a robot .toml file")
     if isinstance(task.action, str) and task.action not in ACTION_PRESETS:
         raise InvalidConfig(
             f"action = {task.action!r}; accepted: {', '.join(ACTION_PRESETS)} or an [action] table"
