@@ -2,7 +2,8 @@
 
 Both run random actions, measured in one process with episodes alternating, and our step is
 broken down into physics (the 20 mj_step substeps), task maps (one evaluation of every map the step
-needs), IK and the rest (action checks, observation dicts, reward, Python overhead).
+needs), IK and the rest (action checks, observation dicts, reward, Python overhead). A last table
+gives every built-in task's steps per second (its default observation and action), alternating too.
 
     python benchmarks/env_step.py [--rounds 5] [--episodes 10]
 """
@@ -18,7 +19,7 @@ import mujoco
 import numpy as np
 from fetch_compat import register_fetch_envs
 
-import tsrl  # noqa: F401  (registers tsrl/UR5eReach-v0)
+import tsrl
 
 
 def episode_step_times(env: gym.Env, seed: int) -> list[float]:
@@ -54,7 +55,7 @@ def breakdown(env: gym.Env, steps: int, seed: int) -> dict[str, float]:
             mujoco.mj_step(u.model, scratch)
         parts["physics"].append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        u._step_maps.in_place(u.model, u.data)  # as the step evaluates them: no copies
+        u.plan._maps.in_place(u.model, u.data)  # as the step evaluates them: no copies
         parts["task maps"].append(time.perf_counter() - t0)
         t0 = time.perf_counter()
         _, _, _, truncated, _ = env.step(action)
@@ -121,6 +122,20 @@ def main() -> None:
     for k in ("physics", "task maps", "IK", "rest", "whole step"):
         print(f"| {k} | {us[k]:.1f} | {us[k] / us['whole step']:.0%} |")
     print(f"\nwhole step / physics alone: {us['whole step'] / us['physics']:.2f}x (target <= 2x)")
+
+    tasks = {env_id: gym.make(env_id) for env_id in tsrl.ENV_IDS}
+    task_times: dict[str, list[float]] = {env_id: [] for env_id in tasks}
+    for r in range(args.rounds):
+        for e in range(args.episodes):
+            for env_id, env in tasks.items():
+                task_times[env_id].extend(episode_step_times(env, seed=100 * r + e))
+    print("\nEvery built-in task, its default observation and action, random actions:\n")
+    print("| task | observation | action dim | steps/s |")
+    print("| --- | --- | ---: | ---: |")
+    for env_id, env in tasks.items():
+        u = env.unwrapped
+        rate = 1.0 / statistics.median(task_times[env_id])
+        print(f"| {env_id} | {u.task.observation} | {env.action_space.shape[0]} | {rate:,.0f} |")
 
 
 if __name__ == "__main__":
