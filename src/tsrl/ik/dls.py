@@ -377,9 +377,10 @@ class DlsSolver:
         if norm > opts.max_step:
             dq *= opts.max_step / norm
         dq += q
-        q_next = self._clip(dq.copy())
-        if (q_next != dq).any():  # a joint would leave its range: hold it there, move the others
-            return self._clamped(q, q_next, e, J, lam, d, dq)
+        unclipped = dq.tobytes()
+        q_next = self._clip(dq)
+        if q_next.tobytes() != unclipped:  # a joint would leave its range: hold it, move the others
+            return self._clamped(q, q_next, e, J, lam, d, np.frombuffer(unclipped))
         return q_next
 
     def _clamped(self, q, q_next, e, J, lam, d, unclipped) -> np.ndarray:
