@@ -1,19 +1,21 @@
-"""IK benchmark: tsrl.ik.solve_ik against mink 1.3 on the same UR5e targets, in one run.
+"""IK benchmark: tsrl.ik.DlsSolver against mink 1.3 on the same targets of any robot, in one run.
 
     pip install -e ".[bench]"
-    python benchmarks/ik.py              # 200 global + 200 local targets, seed 0
-    python benchmarks/ik.py --ablation   # what each ingredient of solve_ik adds (global targets)
+    python benchmarks/ik.py                    # the UR5e: 200 global + 200 local targets, seed 0
+    python benchmarks/ik.py --robot panda      # a built-in robot, or a robot's TOML file
+    python benchmarks/ik.py --ablation         # what each ingredient of the solver adds (global targets)
 
-Both solvers load OUR model (tsrl.assets.load_model("reach")) and reach for the full pose of the
-`tcp` site. A solve succeeds when the position error is <= 1e-4 m and the orientation error is
-<= 1e-4 rad, measured the same way for both (`pose_error`) on the configuration each one returns.
+Both solvers load OUR model of the robot (`tsrl.robots.load_robot(...).load_model()`) and reach for
+the full pose of its TCP frame, moving the robot's joints. A solve succeeds when the position error is
+<= 1e-4 m and the orientation error is <= 1e-4 rad, measured the same way for both (`pose_error`) on
+the configuration each one returns.
 
-- global: start at HOME_Q; target = forward kinematics of a configuration drawn uniformly within
-  the joint limits (any of the UR5e's IK branches may be needed).
-- local (RL-sized): start at HOME_Q + U(-0.3, 0.3) rad per joint; target = the start pose moved by
-  up to 5 cm (uniform in a ball) and turned by up to 5 degrees about a random axis.
+- global: start at the robot's home; target = forward kinematics of a configuration drawn uniformly
+  within the joint limits (any IK branch may be needed).
+- local (RL-sized): start at home + U(-0.3, 0.3) rad per joint (clipped to the limits); target = the
+  start pose moved by up to 5 cm (uniform in a ball) and turned by up to 5 degrees about a random axis.
 
-Ours: `solve_ik` with its defaults and tol = 5e-5 on ||(dp, dquat)||; since ||dquat|| = 2 sin(angle/4)
+Ours: `DlsSolver.solve` with its defaults and tol = 5e-5 on ||(dp, dquat)||; since ||dquat|| = 2 sin(angle/4)
 ~ angle / 2, that bound implies both tolerances above. mink (set up as its own examples do): one
 FrameTask (position and orientation cost 1), ConfigurationLimit, a VelocityLimit that bounds each
 joint's step to 0.2 rad per iteration, global damping 1e-3, the daqp solver that mink installs,
@@ -41,10 +43,9 @@ try:
 except ImportError as err:  # a benchmark-only dependency
     raise SystemExit('mink is missing: pip install -e ".[bench]"') from err
 
-from tsrl.assets import load_model
-from tsrl.assets.ur5e import HOME_Q, JOINT_NAMES, TCP_SITE
-from tsrl.ik import solve_ik
-from tsrl.kinematics import arm_qpos_indices, forward_kinematics, random_configurations
+from tsrl.ik import DlsSolver, IKOptions
+from tsrl.kinematics import arm_qpos_indices, forward_kinematics, joint_limits, random_configurations
+from tsrl.robots import Robot, load_robot
 from tsrl.taskmaps import TaskMap, parse_spec
 
 POS_TOL = 1e-4  # m
@@ -60,7 +61,7 @@ LOCAL_MAX_TURN = np.deg2rad(5.0)  # rad
 
 
 class Case(NamedTuple):
-    q_start: np.ndarray  # (6,)
+    q_start: np.ndarray  # (n,) the robot's joints
     pos: np.ndarray  # (3,) target tcp position, world
     quat: np.ndarray  # (4,) target tcp orientation (w, x, y, z), world
 
@@ -71,42 +72,60 @@ class Outcome(NamedTuple):
     seconds: float
 
 
-def tcp_pose(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """(position (3,), quaternion (4,)) of the tcp site at the kinematics held in data."""
-    sid = model.site(TCP_SITE).id
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, data.site_xmat[sid])
-    return data.site_xpos[sid].copy(), quat
+class Bench(NamedTuple):
+    """The robot under test: its model, description and the map of its TCP's pose."""
+
+    model: mujoco.MjModel
+    robot: Robot
+    pose: TaskMap  # position(tcp), quaternion(tcp): (7,)
+    home: np.ndarray  # (n,)
 
 
-def pose_error(model: mujoco.MjModel, data: mujoco.MjData, case: Case) -> tuple[float, float]:
+def make_bench(robot: str) -> Bench:
+    described = load_robot(robot)
+    model = described.load_model()
+    pose = parse_spec(f"position({described.tcp}), quaternion({described.tcp})", model)
+    return Bench(model, described, pose, described.home_q(model))
+
+
+def tcp_pose(bench: Bench, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """(position (3,), quaternion (4,)) of the TCP frame at the kinematics held in data."""
+    y = bench.pose(bench.model, data).y
+    return y[:3], y[3:]
+
+
+def pose_error(bench: Bench, data: mujoco.MjData, case: Case) -> tuple[float, float]:
     """(position error [m], rotation angle between reached and target orientation [rad])."""
-    pos, quat = tcp_pose(model, data)
+    pos, quat = tcp_pose(bench, data)
     angle = 2.0 * np.arccos(min(1.0, abs(float(quat @ case.quat))))
     return float(np.linalg.norm(pos - case.pos)), float(angle)
 
 
-def reached(model: mujoco.MjModel, data: mujoco.MjData, case: Case) -> bool:
-    dp, dangle = pose_error(model, data, case)
+def reached(bench: Bench, data: mujoco.MjData, case: Case) -> bool:
+    dp, dangle = pose_error(bench, data, case)
     return dp <= POS_TOL and dangle <= ANG_TOL
 
 
-def global_cases(model: mujoco.MjModel, rng: np.random.Generator, n: int) -> list[Case]:
+def global_cases(bench: Bench, rng: np.random.Generator, n: int) -> list[Case]:
+    model, joints = bench.model, bench.robot.joints
     data = mujoco.MjData(model)
     cases = []
-    for q in random_configurations(model, rng, n):
-        forward_kinematics(model, data, q)
-        cases.append(Case(HOME_Q.copy(), *tcp_pose(model, data)))
+    for q in random_configurations(model, rng, n, joints):
+        forward_kinematics(model, data, q, joints)
+        cases.append(Case(bench.home.copy(), *tcp_pose(bench, data)))
     return cases
 
 
-def local_cases(model: mujoco.MjModel, rng: np.random.Generator, n: int) -> list[Case]:
+def local_cases(bench: Bench, rng: np.random.Generator, n: int) -> list[Case]:
+    model, joints = bench.model, bench.robot.joints
     data = mujoco.MjData(model)
+    lo, hi = joint_limits(model, joints).T
     cases = []
     for _ in range(n):
-        q_start = HOME_Q + rng.uniform(-LOCAL_START_SPREAD, LOCAL_START_SPREAD, 6)
-        forward_kinematics(model, data, q_start)
-        pos, quat = tcp_pose(model, data)
+        spread = rng.uniform(-LOCAL_START_SPREAD, LOCAL_START_SPREAD, len(joints))
+        q_start = np.clip(bench.home + spread, lo, hi)
+        forward_kinematics(model, data, q_start, joints)
+        pos, quat = tcp_pose(bench, data)
         direction = rng.normal(size=3)
         move = direction / np.linalg.norm(direction) * LOCAL_MAX_MOVE * rng.uniform() ** (1 / 3)
         axis = rng.normal(size=3)
@@ -119,49 +138,54 @@ def local_cases(model: mujoco.MjModel, rng: np.random.Generator, n: int) -> list
 
 
 class Ours:
-    """solve_ik on position(tcp), quaternion(tcp); `with_value` passes the start value as the env does."""
+    """DlsSolver.solve on position(tcp), quaternion(tcp); `with_value` passes the start value as the env does."""
 
-    def __init__(self, model: mujoco.MjModel, with_value: bool = False, **options: Any):
-        self.model, self.data = model, mujoco.MjData(model)
-        self.task_map: TaskMap = parse_spec(f"position({TCP_SITE}), quaternion({TCP_SITE})", model)
-        self.qadr = arm_qpos_indices(model)
+    def __init__(self, bench: Bench, with_value: bool = False, **options: Any):
+        self.bench, self.data = bench, mujoco.MjData(bench.model)
+        self.qadr = arm_qpos_indices(bench.model, bench.robot.joints)
         self.with_value = with_value
-        self.options = {"tol": OUR_TOL, **options}
+        options = {"tol": OUR_TOL, **options}
+        self.solver = DlsSolver(bench.model, bench.pose, bench.robot.joints, IKOptions(**options))
 
     def __call__(self, case: Case) -> Outcome:
-        model, data = self.model, self.data
+        model, data, joints = self.bench.model, self.data, self.bench.robot.joints
         target = np.concatenate([case.pos, case.quat])
         value = None
         if self.with_value:  # what the environment already holds at the start of a step
-            forward_kinematics(model, data, case.q_start)
-            value = self.task_map(model, data)
+            forward_kinematics(model, data, case.q_start, joints)
+            value = self.bench.pose(model, data)
         else:
             data.qpos[self.qadr] = case.q_start
         start = time.perf_counter()
-        result = solve_ik(model, data, self.task_map, target, initial_value=value, **self.options)
+        result = self.solver.solve(data, target, value)
         seconds = time.perf_counter() - start
-        forward_kinematics(model, data, result.q)
-        return Outcome(reached(model, data, case), result.iterations, seconds)
+        forward_kinematics(model, data, result.q, joints)
+        return Outcome(reached(self.bench, data, case), result.iterations, seconds)
 
 
 class Mink:
     """mink 1.3: FrameTask + ConfigurationLimit + VelocityLimit, daqp, integrate until reached."""
 
-    def __init__(self, model: mujoco.MjModel):
-        self.model = model
+    def __init__(self, bench: Bench):
+        model, robot = bench.model, bench.robot
+        self.bench = bench
         self.configuration = mink.Configuration(model)
-        self.task = mink.FrameTask(TCP_SITE, "site", position_cost=1.0, orientation_cost=1.0)
+        kind = "site" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.tcp) >= 0 else "body"
+        self.task = mink.FrameTask(robot.tcp, kind, position_cost=1.0, orientation_cost=1.0)
         self.limits = [
             mink.ConfigurationLimit(model),
-            mink.VelocityLimit(model, {name: MINK_STEP / MINK_DT for name in JOINT_NAMES}),
+            mink.VelocityLimit(model, {name: MINK_STEP / MINK_DT for name in robot.joints}),
         ]
+        self.qadr = arm_qpos_indices(model, robot.joints)
+        self.qpos = model.qpos0.copy()  # the other coordinates stay at qpos0
 
     def __call__(self, case: Case) -> Outcome:
-        configuration, model = self.configuration, self.model
+        configuration = self.configuration
         data = configuration.data
         self.task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(wxyz=case.quat), case.pos))
+        self.qpos[self.qadr] = case.q_start
         start = time.perf_counter()
-        configuration.update(case.q_start)
+        configuration.update(self.qpos)
         success, iterations = False, 0
         while iterations < MINK_MAX_ITERS and not success:
             v = mink.solve_ik(
@@ -169,9 +193,9 @@ class Mink:
             )
             configuration.integrate_inplace(v, MINK_DT)
             iterations += 1
-            success = reached(model, data, case)
+            success = reached(self.bench, data, case)
         seconds = time.perf_counter() - start
-        return Outcome(reached(model, data, case), iterations, seconds)
+        return Outcome(reached(self.bench, data, case), iterations, seconds)
 
 
 def run(solvers: dict[str, Callable[[Case], Outcome]], cases: list[Case]) -> dict[str, list[Outcome]]:
@@ -199,7 +223,7 @@ def summary(outcomes: list[Outcome]) -> tuple[float, float, float, float]:
     )
 
 
-#: What each ingredient of solve_ik adds (--ablation), and the full method without adaptive damping.
+#: What each ingredient of the solver adds (--ablation), and the full method without adaptive damping.
 ABLATION: dict[str, dict[str, Any]] = {
     "plain DLS (damping 1e-4, no step bound, one start)": {
         "restarts": 0,
@@ -215,11 +239,11 @@ ABLATION: dict[str, dict[str, Any]] = {
 }
 
 
-def ablation(model: mujoco.MjModel, cases: list[Case]) -> None:
+def ablation(bench: Bench, cases: list[Case], **extra: Any) -> None:
     print("| global targets, tsrl | success | median iters | median time [us] | p90 time [us] |")
     print("| --- | --- | --- | --- | --- |")
     for name, options in ABLATION.items():
-        rate, iters, median, p90 = summary(run({name: Ours(model, **options)}, cases)[name])
+        rate, iters, median, p90 = summary(run({name: Ours(bench, **extra, **options)}, cases)[name])
         print(f"| {name} | {rate:.1%} | {iters:.0f} | {median:.0f} | {p90:.0f} |")
 
 
@@ -228,16 +252,24 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=200, help="targets per set")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ablation", action="store_true", help="only ours, ingredient by ingredient")
+    parser.add_argument(
+        "--robot", default="ur5e", help="a built-in robot (tsrl.robots.ROBOTS) or a TOML file"
+    )
+    parser.add_argument(
+        "--posture", action="store_true", help="ours with the null-space posture term toward home"
+    )
     args = parser.parse_args()
 
-    model = load_model("reach")
+    bench = make_bench(args.robot)
     rng = np.random.default_rng(args.seed)
-    sets = {"global": global_cases(model, rng, args.n), "local": local_cases(model, rng, args.n)}
+    sets = {"global": global_cases(bench, rng, args.n), "local": local_cases(bench, rng, args.n)}
+    extra: dict[str, Any] = {"posture": tuple(bench.home)} if args.posture else {}
     if args.ablation:
-        ablation(model, sets["global"])
+        ablation(bench, sets["global"], **extra)
         return
-    ours, ours_value, baseline = Ours(model), Ours(model, with_value=True), Mink(model)
+    ours, ours_value, baseline = Ours(bench, **extra), Ours(bench, with_value=True, **extra), Mink(bench)
 
+    print(f"robot {bench.robot.name}: joints {', '.join(bench.robot.joints)}; TCP {bench.robot.tcp}")
     print(f"tsrl.ik vs mink {version('mink')} (daqp {version('daqp')}), mujoco {mujoco.__version__}")
     print(
         f"{args.n} targets per set, seed {args.seed}; success: |dp| <= {POS_TOL} m and angle <= {ANG_TOL} rad\n"

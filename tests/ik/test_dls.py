@@ -23,7 +23,7 @@ def quaternion_angle(a: np.ndarray, b: np.ndarray) -> float:
     return float(2.0 * np.arccos(min(1.0, abs(a @ b))))
 
 
-def solve_ik(model, data, task_map, target, *, joints=None, initial_value=None, **options) -> IKResult:
+def full_solve(model, data, task_map, target, *, joints=None, initial_value=None, **options) -> IKResult:
     """A full solve with the given options (the tests' shorthand)."""
     return DlsSolver(model, task_map, joints, IKOptions(**options)).solve(data, target, initial_value)
 
@@ -79,7 +79,7 @@ def test_recovers_known_positions(ur5e, rng):
     for q in random_configurations(model, rng, 10):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
-        result = solve_ik(model, data, task_map, target)
+        result = full_solve(model, data, task_map, target)
         assert isinstance(result, IKResult) and result.converged
         assert result.error_norm < 1e-4 and len(result.error_history) == result.iterations + 1
         np.testing.assert_allclose(target_at(model, task_map, result.q), target, atol=1e-4)
@@ -91,7 +91,7 @@ def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
     for q in random_configurations(model, rng, 30):
         target = target_at(model, pose_map, q)
         forward_kinematics(model, data, HOME_Q)
-        result = solve_ik(model, data, pose_map, target, tol=5e-5)
+        result = full_solve(model, data, pose_map, target, tol=5e-5)
         assert result.converged, f"target from q = {q}"
         y = target_at(model, pose_map, result.q)
         assert np.linalg.norm(y[:3] - target[:3]) <= 1e-4
@@ -101,7 +101,7 @@ def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
 def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, rng):
     model, data = ur5e
     target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
-    result = solve_ik(model, data, pose_map, target)
+    result = full_solve(model, data, pose_map, target)
     np.testing.assert_array_equal(data.qpos[:6], result.q)
     np.testing.assert_allclose(pose_map(model, data).y, target_at(model, pose_map, result.q), atol=1e-12)
 
@@ -109,9 +109,9 @@ def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, r
 def test_is_deterministic(ur5e, pose_map, rng):
     model, data = ur5e
     target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
-    first = solve_ik(model, data, pose_map, target)
+    first = full_solve(model, data, pose_map, target)
     forward_kinematics(model, data, HOME_Q)
-    second = solve_ik(model, data, pose_map, target)
+    second = full_solve(model, data, pose_map, target)
     np.testing.assert_array_equal(first.q, second.q)
     assert first.error_history == second.error_history
 
@@ -124,7 +124,7 @@ def test_error_decreases_monotonically_on_easy_targets(ur5e, pose_map, rng):
     for _ in range(10):
         target = target_at(model, pose_map, HOME_Q + rng.uniform(-0.1, 0.1, 6))
         forward_kinematics(model, data, HOME_Q)
-        result = solve_ik(model, data, pose_map, target)
+        result = full_solve(model, data, pose_map, target)
         errors = result.error_history
         assert result.converged and result.iterations <= 5
         assert all(b < a for a, b in pairwise(errors))
@@ -134,7 +134,7 @@ def test_error_decreases_monotonically_on_easy_targets(ur5e, pose_map, rng):
 def test_unreachable_target_reports_failure_within_limits(ur5e, restarts):
     model, data = ur5e
     task_map = parse_spec("position(tcp)", model)
-    result = solve_ik(model, data, task_map, np.array([5.0, 0.0, 0.0]), restarts=restarts)
+    result = full_solve(model, data, task_map, np.array([5.0, 0.0, 0.0]), restarts=restarts)
     assert not result.converged
     assert np.all(np.isfinite(result.q)) and within_limits(model, result.q)
     assert np.isfinite(result.error_norm) and 3.9 < result.error_norm < 5.0  # the arm reaches ~1 m
@@ -151,7 +151,7 @@ def test_singular_start_does_not_blow_up(ur5e, pose_map, start, restarts):
     model, data = ur5e
     target = target_at(model, pose_map, HOME_Q + 0.2)
     forward_kinematics(model, data, start)
-    result = solve_ik(model, data, pose_map, target, restarts=restarts)
+    result = full_solve(model, data, pose_map, target, restarts=restarts)
     assert np.all(np.isfinite(result.q)) and within_limits(model, result.q)
     assert np.all(np.isfinite(result.error_history))
     assert result.converged
@@ -161,7 +161,7 @@ def test_singular_target_is_reached(ur5e, pose_map):
     """A pose whose only solutions are singular (arm stretched) still converges, more slowly."""
     model, data = ur5e
     target = target_at(model, pose_map, np.array([0.3, -0.4, 0.0, 0.5, 0.6, 0.7]))
-    result = solve_ik(model, data, pose_map, target, tol=1e-4)
+    result = full_solve(model, data, pose_map, target, tol=1e-4)
     assert result.converged
 
 
@@ -173,7 +173,7 @@ def test_stacked_position_and_alignment_targets_are_met(ur5e, rng):
     for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(model, rng, 5)]):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
-        result = solve_ik(model, data, task_map, target)
+        result = full_solve(model, data, task_map, target)
         assert result.converged, f"target from q = {q}"
         np.testing.assert_allclose(target_at(model, task_map, result.q), target, atol=1e-4)
 
@@ -185,7 +185,7 @@ def test_cup_pointing_down_is_held_across_the_reach_box(ur5e, rng):
     home_tcp = target_at(model, task_map, HOME_Q)[:3]
     for offset in rng.uniform(-0.15, 0.15, (10, 3)):
         target = np.append(home_tcp + offset, -1.0)
-        result = solve_ik(model, data, task_map, target)
+        result = full_solve(model, data, task_map, target)
         assert result.converged
 
 
@@ -194,7 +194,7 @@ def test_weights_scale_rows_and_zero_drops_them(ur5e, pose_map, rng):
     target = target_at(model, pose_map, HOME_Q + 0.3)
     target[3:] = [0.0, 1.0, 0.0, 0.0]  # an orientation we do not care about
     weights = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0])
-    result = solve_ik(model, data, pose_map, target, weights=weights)
+    result = full_solve(model, data, pose_map, target, weights=weights)
     assert result.converged
     np.testing.assert_allclose(target_at(model, pose_map, result.q)[:3], target[:3], atol=1e-4)
 
@@ -204,9 +204,9 @@ def test_posture_pulls_within_the_null_space(ur5e):
     task_map = parse_spec("position(tcp)", model)
     target = target_at(model, task_map, HOME_Q + 0.1)
     posture = HOME_Q + np.array([0.0, 0.0, 0.0, 0.5, 0.5, 0.5])
-    plain = solve_ik(model, data, task_map, target, tol=1e-6)
+    plain = full_solve(model, data, task_map, target, tol=1e-6)
     forward_kinematics(model, data, HOME_Q)
-    pulled = solve_ik(model, data, task_map, target, tol=1e-6, posture=posture, posture_gain=0.5)
+    pulled = full_solve(model, data, task_map, target, tol=1e-6, posture=posture, posture_gain=0.5)
     assert plain.converged and pulled.converged
     assert np.linalg.norm(pulled.q - posture) < np.linalg.norm(plain.q - posture) - 0.1
 
@@ -219,12 +219,12 @@ def test_joint_limits_hold_on_every_iterate(ur5e, rng):
     model, data = ur5e
     recorder = Recording(parse_spec("jointState", model))
     beyond = np.array([8.0, -8.0, 4.0, 7.0, -7.0, 9.0])
-    result = solve_ik(model, data, recorder, beyond, restarts=0)
+    result = full_solve(model, data, recorder, beyond, restarts=0)
     np.testing.assert_allclose(result.q, np.clip(beyond, *JOINT_LIMITS.T))
     pose = Recording(parse_spec(POSE, model))
     for q in random_configurations(model, rng, 5):
         forward_kinematics(model, data, HOME_Q)
-        solve_ik(model, data, pose, target_at(model, pose.inner, q))
+        full_solve(model, data, pose, target_at(model, pose.inner, q))
     assert len(recorder.qpos) > 1 and len(pose.qpos) > 20
     assert all(within_limits(model, qpos[:6]) for qpos in recorder.qpos + pose.qpos)
 
@@ -233,7 +233,7 @@ def test_start_outside_the_limits_is_clipped(ur5e, pose_map):
     model, data = ur5e
     target = target_at(model, pose_map, HOME_Q)
     data.qpos[:6] = HOME_Q + np.array([7.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-    result = solve_ik(model, data, pose_map, target)
+    result = full_solve(model, data, pose_map, target)
     assert result.converged and within_limits(model, result.q)
 
 
@@ -248,7 +248,7 @@ def test_free_box_in_pick_place_never_moves(pick_place_model, rng):
     before = data.qpos[box_qpos].copy()
     task_map = Recording(parse_spec(POSE, model))
     for q in random_configurations(model, rng, 5):
-        result = solve_ik(model, data, task_map, target_at(model, task_map.inner, q))
+        result = full_solve(model, data, task_map, target_at(model, task_map.inner, q))
         assert result.converged and result.q.shape == (6,)
     np.testing.assert_array_equal(data.qpos[box_qpos], before)
     assert all(np.array_equal(qpos[box_qpos], before) for qpos in task_map.qpos)
@@ -259,7 +259,7 @@ def test_moves_only_the_named_joints(ur5e):
     task_map = parse_spec("position(tcp)", model)
     target = target_at(model, task_map, HOME_Q + np.array([0.0, 0.2, -0.3, 0.0, 0.0, 0.0]))
     joints = ("shoulder_lift", "elbow", "wrist_1")
-    result = solve_ik(model, data, task_map, target, joints=joints)
+    result = full_solve(model, data, task_map, target, joints=joints)
     assert result.converged and result.q.shape == (3,)
     np.testing.assert_array_equal(data.qpos[[0, 4, 5]], HOME_Q[[0, 4, 5]])
 
@@ -271,11 +271,11 @@ def test_initial_value_skips_the_first_evaluation(ur5e, pose_map):
     model, data = ur5e
     target = target_at(model, pose_map, HOME_Q + 0.05)
     recorder = Recording(pose_map)
-    plain = solve_ik(model, data, recorder, target)
+    plain = full_solve(model, data, recorder, target)
     evaluations = len(recorder.qpos)
     forward_kinematics(model, data, HOME_Q)
     value = pose_map(model, data)
-    reused = solve_ik(model, data, recorder, target, initial_value=value)
+    reused = full_solve(model, data, recorder, target, initial_value=value)
     assert len(recorder.qpos) - evaluations == evaluations - 1
     np.testing.assert_array_equal(plain.q, reused.q)
     assert plain.error_history == reused.error_history
@@ -285,7 +285,7 @@ def test_initial_value_at_the_target_leaves_data_alone(ur5e, pose_map):
     model, data = ur5e
     value = pose_map(model, data)
     qpos, xpos = data.qpos.copy(), data.xpos.copy()
-    result = solve_ik(model, data, pose_map, value.y, initial_value=value)
+    result = full_solve(model, data, pose_map, value.y, initial_value=value)
     assert result.converged and result.iterations == 0
     np.testing.assert_array_equal(data.qpos, qpos)
     np.testing.assert_array_equal(data.xpos, xpos)

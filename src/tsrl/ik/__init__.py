@@ -2,6 +2,7 @@
 posture term and restarts, in one solver (`DlsSolver`: `.step` for control loops, `.solve` for the
 full solve)."""
 
-from .dls import DlsSolver, IKOptions, IKResult
+from .dls import DlsSolver
+from .options import IKOptions, IKResult
 
 __all__ = ("DlsSolver", "IKOptions", "IKResult")

@@ -12,6 +12,8 @@ from .frames import Frame, FrameCache
 from .orientation import Quaternion
 from .velocity import Velocity
 
+_F64 = np.dtype(np.float64)
+
 
 class Stack(TaskMap):
     """Parts' values concatenated (dim = sum of parts) and Jacobians stacked (dim, nv).
@@ -99,8 +101,13 @@ class Stack(TaskMap):
         Only parts that override `difference` (quaternions) are treated on their own rows; for one
         value (the IK's case, once per iteration) a quaternion's rule is applied inline.
         """
-        a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+        if type(a) is not np.ndarray or a.dtype is not _F64:  # asarray costs more than these checks
+            a = np.asarray(a, dtype=np.float64)
+        if type(b) is not np.ndarray or b.dtype is not _F64:
+            b = np.asarray(b, dtype=np.float64)
         out = a - b
+        if not self._jumpy:
+            return out
         if out.ndim == 1 and a.ndim == 1:
             for part, span in self._jumpy_1d:
                 if part is None:  # a quaternion: a - sign(a . b) b, sign 1 at 0
