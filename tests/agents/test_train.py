@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, load_config, read_progress, resume, train
-from tsrl.agents.checkpoint import latest_checkpoint, read_state
+from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 
 def tiny(algo: str = "ddpg", seed: int = 0, total: int = 200, **agent: object) -> TrainConfig:

@@ -9,23 +9,21 @@ reason next to each (docs/training.md has the full table).
 from __future__ import annotations
 
 import dataclasses
-import json
 import typing
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Literal
 
-from ..exceptions import InvalidConfig, TsrlError
+from ..envs.actions import ACTION_MODES
+from ..exceptions import InvalidConfig
+from ..taskmaps import OBS_PRESETS
 
-#: A run folder's config file: the exact, validated TrainConfig as JSON.
-CONFIG_FILE = "config.json"
-
-ALGOS: tuple[str, ...] = ("ddpg", "td3", "sac")
-HER_RELABEL: tuple[str, ...] = ("feature", "plain")
-HER_STRATEGIES: tuple[str, ...] = ("future", "final", "episode")
-#: Observation presets of tsrl's environments (paper Table I); a task-map spec string is accepted too.
-OBS_PRESET_NAMES: tuple[str, ...] = ("baseline", "simple", "fs0", "fs1", "fs2")
-ACTION_NAMES: tuple[str, ...] = ("taskspace", "taskspace_orient", "joint")
+Algo = Literal["ddpg", "td3", "sac"]
+HerRelabel = Literal["feature", "plain"]
+HerStrategy = Literal["future", "final", "episode"]
+#: The algorithms (stable-baselines3 classes of the same name, upper case; tsrl.agents.factory).
+ALGOS: tuple[str, ...] = typing.get_args(Algo)
+HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
+HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 #: `obs` / `action` value for environments that are not tsrl's (e.g. FetchReach-v4 in benchmarks).
 NATIVE = "native"
 
@@ -62,11 +60,11 @@ def _positive(name: str, value: float, strict: bool = True) -> None:
 class HerConfig:
     """Hindsight Experience Replay: how stored transitions get new goals."""
 
-    relabel: Literal["feature", "plain"] = "feature"
+    relabel: HerRelabel = "feature"
     """feature: relabelled transitions get their goal-dependent observation features recomputed for the
     new goal (FeatureHerReplayBuffer, exact); plain: stable-baselines3's HER, which replaces only
     desired_goal (goal-dependent features then contradict the new goal)."""
-    strategy: Literal["future", "final", "episode"] = "future"
+    strategy: HerStrategy = "future"
     """Where new goals come from: goals achieved later in the same episode (future, the HER paper's
     best), at its end (final), or anywhere in it (episode)."""
     n_sampled_goal: int = 4
@@ -84,7 +82,7 @@ class HerConfig:
 class AgentConfig:
     """Off-policy algorithm + HER; defaults are the paper's settings where it gives them."""
 
-    algo: Literal["ddpg", "td3", "sac"] = "ddpg"
+    algo: Algo = "ddpg"
     """Off-policy algorithm, always combined with HER (paper: DDPG)."""
     net_arch: tuple[int, ...] = (256, 256)
     """Hidden layers of actor and critic MLPs (paper: [256, 256])."""
@@ -173,10 +171,10 @@ class TrainConfig:
         if self.is_tsrl_env:
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")
-            _choice("action", self.action, ACTION_NAMES)
+            _choice("action", self.action, tuple(ACTION_MODES))
             if not isinstance(self.obs, str) or not self.obs.strip():
                 raise InvalidConfig(
-                    f"obs must be a preset ({', '.join(OBS_PRESET_NAMES)}) or a task-map spec; got {self.obs!r}"
+                    f"obs must be a preset ({', '.join(OBS_PRESETS)}) or a task-map spec; got {self.obs!r}"
                 )
         elif self.obs != NATIVE or self.action != NATIVE:
             raise InvalidConfig(
@@ -209,7 +207,7 @@ class TrainConfig:
         with stable-baselines3's plain HER get a `__her-plain` suffix.
         """
         obs = self.obs
-        if obs not in OBS_PRESET_NAMES and obs != NATIVE:
+        if obs not in OBS_PRESETS and obs != NATIVE:
             import hashlib
 
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
@@ -242,25 +240,3 @@ def from_dict(cls: type, data: dict[str, Any]) -> Any:
             value = tuple(value)
         kwargs[name] = value
     return cls(**kwargs)
-
-
-class NotARunFolder(TsrlError):
-    def __init__(self, path: Path, why: str):
-        super().__init__(
-            f"{path} is not a run folder ({why}); a run folder holds {CONFIG_FILE} written by `tsrl train`"
-        )
-
-
-def load_config(run_dir: Path | str) -> TrainConfig:
-    """The TrainConfig of a run folder (validated)."""
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise NotARunFolder(run_dir, "no such folder")
-    path = run_dir / CONFIG_FILE
-    if not path.is_file():
-        raise NotARunFolder(run_dir, f"no {CONFIG_FILE}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
-    return from_dict(TrainConfig, data)
