@@ -1,6 +1,8 @@
 """Training configuration: HerConfig, AgentConfig and TrainConfig, frozen and validated on construction.
 
-Each field's docstring is its `--help` text (the CLI is generated from these classes). Defaults follow
+Each field's docstring is its `--help` text: tsrl.cli builds its options from these classes with tyro,
+so a new field is a new option (`arg(...)` annotations name a few: --env, --her, --her-strategy; the
+AgentConfig options carry no prefix). Defaults follow
 the paper (DDPG + HER, MLPs [256, 256], lr 1e-3, updates after every two episodes); the other
 defaults come from the HER paper's Fetch settings and rl-baselines3-zoo's FetchReach entries, with the
 reason next to each (docs/training.md has the full table).
@@ -11,7 +13,9 @@ from __future__ import annotations
 import dataclasses
 import typing
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
+
+from tyro.conf import OmitArgPrefixes, arg
 
 from ..envs.actions import ACTION_MODES
 from ..exceptions import InvalidConfig
@@ -60,14 +64,14 @@ def _positive(name: str, value: float, strict: bool = True) -> None:
 class HerConfig:
     """Hindsight Experience Replay: how stored transitions get new goals."""
 
-    relabel: HerRelabel = "feature"
+    relabel: Annotated[HerRelabel, arg(name="her-relabel", aliases=("--her",))] = "feature"
     """feature: relabelled transitions get their goal-dependent observation features recomputed for the
     new goal (FeatureHerReplayBuffer, exact); plain: stable-baselines3's HER, which replaces only
     desired_goal (goal-dependent features then contradict the new goal)."""
-    strategy: HerStrategy = "future"
+    strategy: Annotated[HerStrategy, arg(name="her-strategy")] = "future"
     """Where new goals come from: goals achieved later in the same episode (future, the HER paper's
     best), at its end (final), or anywhere in it (episode)."""
-    n_sampled_goal: int = 4
+    n_sampled_goal: Annotated[int, arg(name="her-n-sampled-goal")] = 4
     """Relabelled transitions per real one: 4 means 80% of a batch is relabelled (HER paper's k = 4)."""
 
     def __post_init__(self) -> None:
@@ -143,7 +147,7 @@ class AgentConfig:
 class TrainConfig:
     """One training run: environment x observation x action x algorithm x seed, and its budget."""
 
-    env_id: str = "tsrl/UR5eReach-v0"
+    env_id: Annotated[str, arg(aliases=("--env",))] = "tsrl/UR5eReach-v0"
     """Registered environment id."""
     obs: str = "fs1"
     """Observation preset (baseline, simple, fs0, fs1, fs2) or a task-map spec string."""
@@ -162,7 +166,7 @@ class TrainConfig:
     SIGINT/SIGTERM; a killed run resumes from the latest one."""
     torch_threads: int = 1
     """Torch CPU threads; 1 is fastest for [256, 256] MLPs with batches of 256."""
-    agent: AgentConfig = field(default_factory=AgentConfig)
+    agent: OmitArgPrefixes[AgentConfig] = field(default_factory=AgentConfig)
     """Algorithm and HER settings."""
 
     def __post_init__(self) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import math
+import shutil
 import signal
 import sys
 import threading
@@ -39,6 +40,7 @@ from .run_folder import (
     TENSORBOARD,
     RunLock,
     RunState,
+    checkpoint_dirs,
     load_config,
     read_progress,
     truncate_progress,
@@ -86,6 +88,7 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
     """Continues a run from its newest usable checkpoint (or from scratch if it has none), optionally
     with a new budget; counters, replay buffer and normaliser statistics come back.
 
+    Damaged checkpoints newer than the one used are removed before training restarts from it.
     Raises RunLocked while another process trains the run, NoUsableCheckpoint (leaving the folder as
     it was) when every checkpoint is damaged.
     """
@@ -98,6 +101,10 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
             raise InvalidConfig(
                 f"--total-timesteps {total_timesteps} is below the {done} env steps already done"
             )
+        if checkpoint is not None:  # damaged ones newer than it: the run goes past their steps again
+            for newer in checkpoint_dirs(run_dir):
+                if newer.name > checkpoint.path.name:
+                    shutil.rmtree(newer)
         if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
             cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
             write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
