@@ -149,10 +149,11 @@ class TrainConfig:
 
     env_id: Annotated[str, arg(aliases=("--env",))] = "tsrl/UR5eReach-v0"
     """Registered environment id."""
-    obs: str = "fs1"
-    """Observation preset (baseline, simple, fs0, fs1, fs2) or a task-map spec string."""
-    action: str = "taskspace"
-    """Action mode: taskspace, taskspace_orient or joint."""
+    # Help texts built from the registries, so that they list every preset and mode there is.
+    obs: Annotated[
+        str, arg(help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.")
+    ] = "fs1"
+    action: Annotated[str, arg(help=f"Action mode: {', '.join(ACTION_MODES)}.")] = "taskspace"
     seed: int = 0
     """Seed of networks, exploration, replay sampling and training episodes."""
     total_timesteps: int = 20_000
