@@ -4,7 +4,10 @@ Built with tyro: a command is a frozen dataclass whose fields are its options (e
 docstring its help text, its type and default those of the option) and whose run() does the work;
 COMMANDS maps command names to these classes. `tsrl train`'s options are the fields of
 tsrl.agents.TrainConfig and its nested AgentConfig and HerConfig, so a new config field is a new
-option. Bad input ends with one line on stderr naming what is accepted, exit code 2.
+option. A command with subcommands (`tsrl demos record`) is a dataclass whose one field is a Union
+of `Annotated[Sub, tyro.conf.subcommand("record")]` types, marked tyro.conf.OmitSubcommandPrefixes,
+and whose run() calls the chosen one's. Bad input ends with one line on stderr naming what is
+accepted, exit code 2.
 """
 
 from __future__ import annotations
@@ -256,7 +259,7 @@ def _raise_one_line(event: tyro._errors.ParseErrorEvent) -> None:
     elif isinstance(event, e.MissingArgs):
         message = f"missing {', '.join(_name(a.arg) for a in event.missing_arguments)}; {see}"
     elif isinstance(event, e.MissingSubcommand):
-        message = f"missing command; accepted: {', '.join(COMMANDS)}"
+        message = f"missing command; accepted: {', '.join(event.subcommand_spec.parser_from_name)}"
     elif isinstance(event, e.BadValue):
         message = f"bad value for {_name(event.argument)}; {see}"
     else:
