@@ -30,9 +30,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from fetch_compat import register_fetch_envs
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
-from tsrl.agents.checkpoint import latest_checkpoint, read_state
 from tsrl.agents.config import NATIVE
 from tsrl.agents.plotting import mean_ci95
+from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 THRESHOLDS = (0.5, 0.9, 0.95)
 

@@ -12,14 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runner import run_tsrl
-
-#: Seconds-long training: 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
-TINY = [
-    "--total-timesteps", "200", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
-    "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress",
-]  # fmt: skip
-RUN_NAME = "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0"
+from cli_runner import RUN_NAME, TINY, run_tsrl
 
 
 def spawn(*args: str) -> subprocess.Popen:
@@ -43,7 +36,7 @@ def wait_for(predicate, proc: subprocess.Popen, timeout: float = 90) -> None:
 
 def checkpoint_steps(run_dir: Path) -> list[int]:
     root = run_dir / "checkpoints"
-    return [int(p.name[5:]) for p in root.glob("step_*")] if root.is_dir() else []
+    return sorted(int(p.name[5:]) for p in root.glob("step_*")) if root.is_dir() else []
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +64,7 @@ def test_train_writes_a_self_describing_run_folder(trained_run):
             csv.DictReader(f).fieldnames
         )
     assert list((trained_run / "tb").glob("events.out.tfevents*"))
-    assert checkpoint_steps(trained_run) == [200]
+    assert checkpoint_steps(trained_run) == [100, 200]  # the last two
     assert (trained_run / "learning_curve.png").is_file()
 
 
@@ -107,17 +100,22 @@ def test_render_writes_a_video(trained_run, tmp_path):
         assert sum(1 for _ in reader) == 51  # reset + 50 steps
 
 
-def test_sigkill_then_resume_continues_counters_without_duplicate_rows(tmp_path):
+def test_a_live_run_refuses_a_second_trainer_then_sigkill_and_resume_continue_counters(tmp_path):
     proc = spawn("train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "2000")
     run_dir = tmp_path / RUN_NAME
     wait_for(lambda: any(s >= 200 for s in checkpoint_steps(run_dir)), proc)
+    refused = run_tsrl("train", "--resume", str(run_dir))  # while the first one trains it
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
+    assert f"being trained by process {proc.pid}" in refused.stderr
     proc.send_signal(signal.SIGKILL)
     proc.communicate()
     killed_at = max(checkpoint_steps(run_dir))
+    assert (run_dir / "train.lock").read_text().strip() == str(proc.pid)  # left behind by the killed one
     result = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", "500")
     assert result.returncode == 0, result.stderr
+    assert not (run_dir / "train.lock").exists()
     assert steps_column(run_dir) == [(s, s // 50) for s in range(0, 501, 100)]  # each row once, none lost
-    assert checkpoint_steps(run_dir) == [500]
+    assert checkpoint_steps(run_dir) == [400, 500]
     state = json.loads((run_dir / "checkpoints" / "step_0000000500" / "state.json").read_text())
     assert (state["env_steps"], state["episodes"]) == (500, 10)
     assert killed_at >= 200
@@ -153,12 +151,22 @@ def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
         (["train", "--resume", "."], "not a run folder"),
         (["evaluate", "no/such/run"], "not a run folder"),
         (["render", "."], "not a run folder"),
+        (["train", "--seed", "abc"], "--seed: invalid literal for int() with base 10: 'abc'"),
+        (["train", "--net-arch", "64", "x"], "--net-arch"),
+        (["train", "--no-such-option", "1"], "unrecognized arguments: --no-such-option 1"),
+        (["fly"], "unrecognized arguments: fly"),
+        ([], "missing command; accepted: train, evaluate, render, plot, demo, experiment, report"),
+        (["evaluate"], "missing RUN_DIR"),
+        (["evaluate", ".", "--episodes", "0"], "--episodes must be >= 1; got 0"),
+        (["render", ".", "--size", "8", "8"], "--size must be at least 16 16; got 8 8"),
+        (["plot"], "at least one RUN_DIR"),
+        (["demo", "--poses", "-1"], "--poses must be >= 0; got -1"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
     result = (
         run_tsrl(*args, "--out-dir", str(tmp_path))
-        if args[0] == "train" and "--resume" not in args
+        if args[:1] == ["train"] and "--resume" not in args
         else run_tsrl(*args)
     )
     assert result.returncode == 2, result.stderr
@@ -166,6 +174,23 @@ def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
     assert len(lines) == 1 and expected in lines[0], result.stderr
     assert "Traceback" not in result.stderr
     assert not any(tmp_path.iterdir())  # no half-made run folder
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--seed", "3"], "only --total-timesteps may be given with it, got --seed"),
+        (["--her-strategy", "final", "--algo", "td3"], "got --algo, --her-strategy"),
+        (["--total-timesteps", "100"], "--total-timesteps 100 is below the 200 env steps already done"),
+    ],
+)
+def test_resume_takes_only_a_new_budget(args, expected, trained_run):
+    before = {p: p.stat().st_mtime_ns for p in trained_run.rglob("*")}
+    result = run_tsrl("train", "--resume", str(trained_run), *args)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], result.stderr
+    assert before == {p: p.stat().st_mtime_ns for p in trained_run.rglob("*")}
 
 
 def test_help_lists_the_training_commands():

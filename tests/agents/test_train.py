@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 import pickle
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, load_config, read_progress, resume, train
-from tsrl.agents.checkpoint import latest_checkpoint, read_state
+from tsrl.agents.checkpoint import usable_checkpoint, verify_checkpoint
+from tsrl.agents.run_folder import DamagedCheckpoint, checkpoint_dirs, latest_checkpoint, read_state
 
 
 def tiny(algo: str = "ddpg", seed: int = 0, total: int = 200, **agent: object) -> TrainConfig:
@@ -90,3 +92,51 @@ def test_plain_her_runs_for_comparison(tmp_path):
     run_dir = train(tiny(her=HerConfig(relabel="plain")), tmp_path, progress_bar=False)
     assert run_dir.name.endswith("__s0__her-plain") and load_config(run_dir).agent.her.relabel == "plain"
     assert [r["env_steps"] for r in read_progress(run_dir)] == [0, 100, 200]
+
+
+def cut(path: Path) -> None:
+    """A file cut short, as a full disk or a kill during a copy leaves it."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+#: One way to damage each file of a checkpoint.
+DAMAGE = {
+    "model.zip": lambda p: p.write_bytes(b"not a zip archive"),
+    "replay_buffer.pkl": cut,
+    "vecnormalize.pkl": cut,
+    "rng.pkl": cut,
+    "state.json": cut,
+}
+
+
+@pytest.fixture(scope="module")
+def two_checkpoints(tmp_path_factory) -> Path:
+    """A run with checkpoints at 100 and 200 env steps."""
+    run_dir = train(tiny(total=200), tmp_path_factory.mktemp("two"), progress_bar=False)
+    assert [p.name for p in checkpoint_dirs(run_dir)] == ["step_0000000100", "step_0000000200"]
+    return run_dir
+
+
+@pytest.mark.parametrize("name", DAMAGE)
+def test_resume_falls_back_past_a_damaged_file_with_one_warning(name, two_checkpoints, tmp_path, capsys):
+    run_dir = shutil.copytree(two_checkpoints, tmp_path / two_checkpoints.name)
+    damaged = run_dir / "checkpoints" / "step_0000000200" / name
+    DAMAGE[name](damaged)
+    capsys.readouterr()
+    resume(run_dir, total_timesteps=300, progress_bar=False)
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and str(damaged) in warnings[0] and "using step_0000000100" in warnings[0]
+    rows = read_progress(run_dir)
+    assert [(r["env_steps"], r["episodes"]) for r in rows] == [(0, 0), (100, 2), (200, 4), (300, 6)]
+    assert [p.name for p in checkpoint_dirs(run_dir)] == ["step_0000000200", "step_0000000300"]
+    assert buffer_of(run_dir).pos == 300  # 100 transitions from the checkpoint used, 200 new
+
+
+def test_a_model_archive_whose_counters_disagree_with_state_json_is_not_used(two_checkpoints, tmp_path):
+    run_dir = shutil.copytree(two_checkpoints, tmp_path / two_checkpoints.name)
+    older, newer = checkpoint_dirs(run_dir)
+    shutil.copy(older / "model.zip", newer / "model.zip")  # a whole archive, of 100 env steps
+    with pytest.raises(DamagedCheckpoint, match="disagree with state.json"):
+        verify_checkpoint(newer, normalized=True, for_training=True)
+    assert usable_checkpoint(run_dir, normalized=True, for_training=True).path == older

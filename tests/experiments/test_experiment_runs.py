@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 from cli_runner import run_tsrl
 
-from tsrl.agents.checkpoint import latest_checkpoint, read_state
+from tsrl.agents.run_folder import latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import load_experiment
 from tsrl.experiments.pool import run_experiment

@@ -1,7 +1,7 @@
 """Agents: DDPG/TD3/SAC with feature-aware HER, built by a factory; training runs, checkpoints, evaluation.
 
-The configs import fast; the rest (torch, stable-baselines3) loads on first use, so `tsrl --help`
-and `tsrl demo` stay quick.
+The configs and run folders import fast; the rest (torch, stable-baselines3) loads on first use, so
+`tsrl --help` and `tsrl demo` stay quick.
 """
 
 from __future__ import annotations
@@ -9,18 +9,19 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .config import AgentConfig, HerConfig, NotARunFolder, TrainConfig, load_config
+from .config import ALGOS, AgentConfig, HerConfig, TrainConfig
+from .run_folder import NotARunFolder, load_config, read_progress
 
 _LAZY = {
-    "ALGOS": "factory",
     "make_agent": "factory",
     "make_env": "factory",
     "make_vec_env": "factory",
     "FeatureHerReplayBuffer": "her",
     "TrainingInterrupted": "training",
-    "read_progress": "training",
     "resume": "training",
     "train": "training",
+    "evaluate_run": "evaluation",
+    "render_run": "evaluation",
 }
 
 __all__ = (
@@ -31,11 +32,13 @@ __all__ = (
     "NotARunFolder",
     "TrainConfig",
     "TrainingInterrupted",
+    "evaluate_run",
     "load_config",
     "make_agent",
     "make_env",
     "make_vec_env",
     "read_progress",
+    "render_run",
     "resume",
     "train",
 )

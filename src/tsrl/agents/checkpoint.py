@@ -1,10 +1,13 @@
 """Checkpoints of a run: model, replay buffer, normaliser statistics, counters and RNG states.
 
-A checkpoint is a folder `checkpoints/step_<env steps>/`, written whole into a temporary folder and
-renamed into place (atomic), so a run killed at any moment (SIGKILL included) leaves only complete
-checkpoints. The latest complete one is the one with the most env steps; older ones are removed once
-a newer one is in place. Checkpoints are only taken between updates, at an episode boundary, so a
-resumed run starts a fresh episode with nothing half-stored.
+A checkpoint is a folder `checkpoints/step_<env steps>/` (tsrl.agents.run_folder), written whole into a
+temporary folder and renamed into place (atomic), so a run killed at any moment (SIGKILL included)
+leaves only complete checkpoints. The last two complete ones are kept. Before a checkpoint is used it
+is verified: the model archive opens and its counters agree with state.json, the pickles load and hold
+what they should. A damaged checkpoint is skipped with a one-line warning naming the damaged file, and
+the previous one is used; if none is usable, NoUsableCheckpoint names every damaged file. Checkpoints
+are only taken between updates, at an episode boundary, so a resumed run starts a fresh episode with
+nothing half-stored.
 """
 
 from __future__ import annotations
@@ -14,61 +17,59 @@ import os
 import pickle
 import random
 import shutil
+import sys
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch as th
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.her import HerReplayBuffer
 
-CHECKPOINTS = "checkpoints"
-MODEL = "model.zip"
-REPLAY_BUFFER = "replay_buffer.pkl"
-NORMALIZER = "vecnormalize.pkl"
-RNG = "rng.pkl"
-STATE = "state.json"
+from .run_folder import (
+    CHECKPOINTS,
+    KEEP_CHECKPOINTS,
+    MODEL,
+    NORMALIZER,
+    REPLAY_BUFFER,
+    RNG,
+    STATE,
+    DamagedCheckpoint,
+    NoUsableCheckpoint,
+    RunState,
+    checkpoint_dirs,
+    checkpoint_path,
+    read_state,
+)
+
+_RNG_KEYS = frozenset({"python", "numpy", "torch", "action_space"})
 
 
 @dataclass(frozen=True)
-class RunState:
-    """Counters of a run at a checkpoint."""
+class Checkpoint:
+    """A verified checkpoint, with the parts that were loaded to verify it (None where not asked for)."""
 
-    env_steps: int
-    episodes: int
-    wall_time_s: float
-    """Training wall time up to the checkpoint, evaluations included, summed over resumed sessions."""
-    next_eval: int
-    next_checkpoint: int
-    eval_time_s: float = 0.0
-    """Part of wall_time_s spent in evaluations."""
-
-
-def checkpoint_dirs(run_dir: Path | str) -> list[Path]:
-    """Complete checkpoints of a run, oldest first."""
-    root = Path(run_dir) / CHECKPOINTS
-    if not root.is_dir():
-        return []
-    dirs = [p for p in root.glob("step_*") if p.is_dir() and (p / STATE).is_file()]
-    return sorted(dirs, key=lambda p: int(p.name.removeprefix("step_")))
-
-
-def latest_checkpoint(run_dir: Path | str) -> Path | None:
-    dirs = checkpoint_dirs(run_dir)
-    return dirs[-1] if dirs else None
+    path: Path
+    state: RunState
+    normalizer: VecNormalize | None
+    replay_buffer: ReplayBuffer | None = None
+    rng: dict[str, Any] | None = None
 
 
 def save_checkpoint(
     run_dir: Path, model: OffPolicyAlgorithm, normalizer: VecNormalize | None, state: RunState
 ) -> Path:
-    """Writes a checkpoint atomically and removes the older ones; returns its folder."""
+    """Writes a checkpoint atomically and removes all but the last KEEP_CHECKPOINTS; returns its folder."""
     root = run_dir / CHECKPOINTS
     root.mkdir(parents=True, exist_ok=True)
-    final = root / f"step_{state.env_steps:010d}"
+    final = checkpoint_path(run_dir, state.env_steps)
     if (final / STATE).is_file():  # this very state is already saved (e.g. a stop right after resuming)
         return final
-    tmp = root / f".tmp-step_{state.env_steps:010d}-{os.getpid()}"
+    tmp = root / f".tmp-{final.name}-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     model.save(tmp / MODEL)
@@ -82,46 +83,127 @@ def save_checkpoint(
     (tmp / STATE).write_text(json.dumps(state.__dict__, indent=2) + "\n")  # last: marks it complete
     shutil.rmtree(final, ignore_errors=True)
     os.replace(tmp, final)
+    keep = set(checkpoint_dirs(run_dir)[-KEEP_CHECKPOINTS:]) | {final}
     for old in root.iterdir():
-        if old != final and (old.name.startswith("step_") or old.name.startswith(".tmp-")):
+        if old not in keep and (old.name.startswith("step_") or old.name.startswith(".tmp-")):
             shutil.rmtree(old, ignore_errors=True)
     return final
 
 
-def read_state(checkpoint: Path) -> RunState:
-    return RunState(**json.loads((checkpoint / STATE).read_text()))
+def verify_checkpoint(path: Path, normalized: bool, for_training: bool) -> Checkpoint:
+    """Checks every file of the checkpoint at `path` that is about to be used; raises DamagedCheckpoint
+    naming the first bad file.
+
+    The model archive must open (every member's CRC) and its env steps and episodes agree with
+    state.json; the normaliser (when `normalized`) must unpickle to a VecNormalize. With
+    `for_training`, the replay buffer must unpickle to a buffer holding state.json's env steps, and the
+    RNG states to the four generators a resumed run restores.
+    """
+    state = read_state(path)
+    _verify_model(path / MODEL, state)
+    normalizer = _load_pickle(path / NORMALIZER, VecNormalize) if normalized else None
+    if not for_training:
+        return Checkpoint(path, state, normalizer)
+    buffer = _load_pickle(path / REPLAY_BUFFER, ReplayBuffer)
+    stored = buffer.buffer_size if buffer.full else buffer.pos
+    if stored != min(state.env_steps, buffer.buffer_size):
+        raise DamagedCheckpoint(
+            path / REPLAY_BUFFER, f"holds {stored} transitions, state.json counts {state.env_steps} env steps"
+        )
+    rng = _load_pickle(path / RNG, dict)
+    if set(rng) != _RNG_KEYS:
+        raise DamagedCheckpoint(path / RNG, f"expected RNG states {sorted(_RNG_KEYS)}; got {sorted(rng)}")
+    return Checkpoint(path, state, normalizer, buffer, rng)
+
+
+def usable_checkpoint(run_dir: Path, normalized: bool, for_training: bool) -> Checkpoint | None:
+    """The newest checkpoint that passes verify_checkpoint, None if the run has no checkpoint yet.
+
+    Each damaged one is skipped with a one-line warning on stderr naming the damaged file; when every
+    checkpoint is damaged, NoUsableCheckpoint names each damaged file. Nothing is written or removed.
+    """
+    damaged: list[DamagedCheckpoint] = []
+    for path in reversed(checkpoint_dirs(run_dir)):
+        try:
+            checkpoint = verify_checkpoint(path, normalized, for_training)
+        except DamagedCheckpoint as err:
+            damaged.append(err)
+            continue
+        for err in damaged:
+            print(f"tsrl: warning: damaged checkpoint skipped, {err}; using {path.name}", file=sys.stderr)
+        return checkpoint
+    if damaged:
+        raise NoUsableCheckpoint(run_dir, damaged)
+    return None
 
 
 def load_checkpoint(
-    checkpoint: Path, algo_class: type[OffPolicyAlgorithm], env: VecEnv, normalizer: VecNormalize | None
-) -> tuple[OffPolicyAlgorithm, RunState]:
-    """The model of `checkpoint` on `env`, with its replay buffer, normaliser statistics and RNG states."""
-    model = algo_class.load(checkpoint / MODEL, env=env, device="cpu")
-    model.load_replay_buffer(checkpoint / REPLAY_BUFFER, truncate_last_traj=False)
-    if normalizer is not None and (checkpoint / NORMALIZER).is_file():
-        with open(checkpoint / NORMALIZER, "rb") as f:
-            saved: VecNormalize = pickle.load(f)
-        normalizer.obs_rms = saved.obs_rms
-        normalizer.ret_rms = saved.ret_rms
-    with open(checkpoint / RNG, "rb") as f:
-        _set_rng_state(model, pickle.load(f))
-    state = read_state(checkpoint)
-    model.num_timesteps = state.env_steps
-    model._episode_num = state.episodes
-    return model, state
+    checkpoint: Checkpoint,
+    algo_class: type[OffPolicyAlgorithm],
+    env: VecEnv,
+    normalizer: VecNormalize | None,
+) -> OffPolicyAlgorithm:
+    """The model of a verified `checkpoint` on `env`, with its replay buffer, normaliser statistics and
+    RNG states, and its counters."""
+    assert checkpoint.replay_buffer is not None and checkpoint.rng is not None, "verified for_training"
+    model = algo_class.load(checkpoint.path / MODEL, env=env, device="cpu")
+    buffer = checkpoint.replay_buffer
+    if isinstance(buffer, HerReplayBuffer):
+        buffer.set_env(model.get_env())
+    buffer.device = model.device
+    model.replay_buffer = buffer
+    if normalizer is not None and checkpoint.normalizer is not None:
+        normalizer.obs_rms = checkpoint.normalizer.obs_rms
+        normalizer.ret_rms = checkpoint.normalizer.ret_rms
+    _set_rng_state(model, checkpoint.rng)
+    model.num_timesteps = checkpoint.state.env_steps
+    model._episode_num = checkpoint.state.episodes
+    return model
 
 
-def load_policy(checkpoint: Path, algo_class: type[OffPolicyAlgorithm]) -> tuple[Any, VecNormalize | None]:
-    """Model (without env or replay buffer) and normaliser of a checkpoint, for evaluation and rendering."""
+def load_policy(
+    checkpoint: Checkpoint, algo_class: type[OffPolicyAlgorithm]
+) -> tuple[Any, VecNormalize | None]:
+    """Model (without env or replay buffer) and normaliser of a verified checkpoint, for evaluation and
+    rendering."""
     # No env and a token replay buffer: HER's buffer needs an env, and evaluation needs no buffer.
     no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
-    model = algo_class.load(checkpoint / MODEL, device="cpu", custom_objects=no_buffer)
-    normalizer = None
-    if (checkpoint / NORMALIZER).is_file():
-        with open(checkpoint / NORMALIZER, "rb") as f:
-            normalizer = pickle.load(f)
+    model = algo_class.load(checkpoint.path / MODEL, device="cpu", custom_objects=no_buffer)
+    normalizer = checkpoint.normalizer
+    if normalizer is not None:
         normalizer.training = False
     return model, normalizer
+
+
+def _verify_model(path: Path, state: RunState) -> None:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+            if bad is not None:
+                raise DamagedCheckpoint(path, f"member {bad} fails its CRC check")
+            data = json.loads(archive.read("data"))
+            names = set(archive.namelist())
+    except (OSError, zipfile.BadZipFile, KeyError, EOFError, json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise DamagedCheckpoint(path, f"not a readable model archive ({type(err).__name__}: {err})") from None
+    if "policy.pth" not in names:
+        raise DamagedCheckpoint(path, "the model archive has no policy.pth")
+    counters = (data.get("num_timesteps"), data.get("_episode_num"))
+    if counters != (state.env_steps, state.episodes):
+        raise DamagedCheckpoint(
+            path,
+            f"env steps and episodes {counters} disagree with state.json's ({state.env_steps}, {state.episodes})",
+        )
+
+
+def _load_pickle(path: Path, expected: type) -> Any:
+    try:
+        with open(path, "rb") as f:
+            obj = pickle.load(f)
+    except Exception as err:  # noqa: BLE001  (unpickling a damaged file can raise almost anything)
+        raise DamagedCheckpoint(path, f"does not load ({type(err).__name__}: {err})") from None
+    if not isinstance(obj, expected):
+        raise DamagedCheckpoint(path, f"holds a {type(obj).__name__}, expected a {expected.__name__}")
+    return obj
 
 
 def _rng_state(model: OffPolicyAlgorithm) -> dict[str, Any]:

@@ -1,6 +1,8 @@
 """Training configuration: HerConfig, AgentConfig and TrainConfig, frozen and validated on construction.
 
-Each field's docstring is its `--help` text (the CLI is generated from these classes). Defaults follow
+Each field's docstring is its `--help` text: tsrl.cli builds its options from these classes with tyro,
+so a new field is a new option (`arg(...)` annotations name a few: --env, --her, --her-strategy; the
+AgentConfig options carry no prefix). Defaults follow
 the paper (DDPG + HER, MLPs [256, 256], lr 1e-3, updates after every two episodes); the other
 defaults come from the HER paper's Fetch settings and rl-baselines3-zoo's FetchReach entries, with the
 reason next to each (docs/training.md has the full table).
@@ -9,23 +11,23 @@ reason next to each (docs/training.md has the full table).
 from __future__ import annotations
 
 import dataclasses
-import json
 import typing
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from ..exceptions import InvalidConfig, TsrlError
+from tyro.conf import OmitArgPrefixes, arg
 
-#: A run folder's config file: the exact, validated TrainConfig as JSON.
-CONFIG_FILE = "config.json"
+from ..envs.actions import ACTION_MODES
+from ..exceptions import InvalidConfig
+from ..taskmaps import OBS_PRESETS
 
-ALGOS: tuple[str, ...] = ("ddpg", "td3", "sac")
-HER_RELABEL: tuple[str, ...] = ("feature", "plain")
-HER_STRATEGIES: tuple[str, ...] = ("future", "final", "episode")
-#: Observation presets of tsrl's environments (paper Table I); a task-map spec string is accepted too.
-OBS_PRESET_NAMES: tuple[str, ...] = ("baseline", "simple", "fs0", "fs1", "fs2")
-ACTION_NAMES: tuple[str, ...] = ("taskspace", "taskspace_orient", "joint")
+Algo = Literal["ddpg", "td3", "sac"]
+HerRelabel = Literal["feature", "plain"]
+HerStrategy = Literal["future", "final", "episode"]
+#: The algorithms (stable-baselines3 classes of the same name, upper case; tsrl.agents.factory).
+ALGOS: tuple[str, ...] = typing.get_args(Algo)
+HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
+HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 #: `obs` / `action` value for environments that are not tsrl's (e.g. FetchReach-v4 in benchmarks).
 NATIVE = "native"
 
@@ -62,14 +64,14 @@ def _positive(name: str, value: float, strict: bool = True) -> None:
 class HerConfig:
     """Hindsight Experience Replay: how stored transitions get new goals."""
 
-    relabel: Literal["feature", "plain"] = "feature"
+    relabel: Annotated[HerRelabel, arg(name="her-relabel", aliases=("--her",))] = "feature"
     """feature: relabelled transitions get their goal-dependent observation features recomputed for the
     new goal (FeatureHerReplayBuffer, exact); plain: stable-baselines3's HER, which replaces only
     desired_goal (goal-dependent features then contradict the new goal)."""
-    strategy: Literal["future", "final", "episode"] = "future"
+    strategy: Annotated[HerStrategy, arg(name="her-strategy")] = "future"
     """Where new goals come from: goals achieved later in the same episode (future, the HER paper's
     best), at its end (final), or anywhere in it (episode)."""
-    n_sampled_goal: int = 4
+    n_sampled_goal: Annotated[int, arg(name="her-n-sampled-goal")] = 4
     """Relabelled transitions per real one: 4 means 80% of a batch is relabelled (HER paper's k = 4)."""
 
     def __post_init__(self) -> None:
@@ -84,7 +86,7 @@ class HerConfig:
 class AgentConfig:
     """Off-policy algorithm + HER; defaults are the paper's settings where it gives them."""
 
-    algo: Literal["ddpg", "td3", "sac"] = "ddpg"
+    algo: Algo = "ddpg"
     """Off-policy algorithm, always combined with HER (paper: DDPG)."""
     net_arch: tuple[int, ...] = (256, 256)
     """Hidden layers of actor and critic MLPs (paper: [256, 256])."""
@@ -145,12 +147,13 @@ class AgentConfig:
 class TrainConfig:
     """One training run: environment x observation x action x algorithm x seed, and its budget."""
 
-    env_id: str = "tsrl/UR5eReach-v0"
+    env_id: Annotated[str, arg(aliases=("--env",))] = "tsrl/UR5eReach-v0"
     """Registered environment id."""
-    obs: str = "fs1"
-    """Observation preset (baseline, simple, fs0, fs1, fs2) or a task-map spec string."""
-    action: str = "taskspace"
-    """Action mode: taskspace, taskspace_orient or joint."""
+    # Help texts built from the registries, so that they list every preset and mode there is.
+    obs: Annotated[
+        str, arg(help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.")
+    ] = "fs1"
+    action: Annotated[str, arg(help=f"Action mode: {', '.join(ACTION_MODES)}.")] = "taskspace"
     seed: int = 0
     """Seed of networks, exploration, replay sampling and training episodes."""
     total_timesteps: int = 20_000
@@ -164,7 +167,7 @@ class TrainConfig:
     SIGINT/SIGTERM; a killed run resumes from the latest one."""
     torch_threads: int = 1
     """Torch CPU threads; 1 is fastest for [256, 256] MLPs with batches of 256."""
-    agent: AgentConfig = field(default_factory=AgentConfig)
+    agent: OmitArgPrefixes[AgentConfig] = field(default_factory=AgentConfig)
     """Algorithm and HER settings."""
 
     def __post_init__(self) -> None:
@@ -173,10 +176,10 @@ class TrainConfig:
         if self.is_tsrl_env:
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")
-            _choice("action", self.action, ACTION_NAMES)
+            _choice("action", self.action, tuple(ACTION_MODES))
             if not isinstance(self.obs, str) or not self.obs.strip():
                 raise InvalidConfig(
-                    f"obs must be a preset ({', '.join(OBS_PRESET_NAMES)}) or a task-map spec; got {self.obs!r}"
+                    f"obs must be a preset ({', '.join(OBS_PRESETS)}) or a task-map spec; got {self.obs!r}"
                 )
         elif self.obs != NATIVE or self.action != NATIVE:
             raise InvalidConfig(
@@ -209,7 +212,7 @@ class TrainConfig:
         with stable-baselines3's plain HER get a `__her-plain` suffix.
         """
         obs = self.obs
-        if obs not in OBS_PRESET_NAMES and obs != NATIVE:
+        if obs not in OBS_PRESETS and obs != NATIVE:
             import hashlib
 
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
@@ -242,25 +245,3 @@ def from_dict(cls: type, data: dict[str, Any]) -> Any:
             value = tuple(value)
         kwargs[name] = value
     return cls(**kwargs)
-
-
-class NotARunFolder(TsrlError):
-    def __init__(self, path: Path, why: str):
-        super().__init__(
-            f"{path} is not a run folder ({why}); a run folder holds {CONFIG_FILE} written by `tsrl train`"
-        )
-
-
-def load_config(run_dir: Path | str) -> TrainConfig:
-    """The TrainConfig of a run folder (validated)."""
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise NotARunFolder(run_dir, "no such folder")
-    path = run_dir / CONFIG_FILE
-    if not path.is_file():
-        raise NotARunFolder(run_dir, f"no {CONFIG_FILE}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
-    return from_dict(TrainConfig, data)

@@ -1,16 +1,22 @@
-"""Deterministic evaluation of a policy on seeded episodes: success rate and final distance."""
+"""A policy's deterministic rollouts on seeded episodes: its success rate and final distance
+(Evaluator, evaluate_run) and a video of it (render_run)."""
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
+from .checkpoint import Checkpoint, load_policy, usable_checkpoint
 from .config import TrainConfig
-from .factory import make_env
+from .factory import ALGO_CLASSES, make_env
+from .run_folder import NotARunFolder, load_config
 
 #: Evaluation seeds are drawn from a stream of their own, apart from training's episode seeds.
 _EVAL_STREAM = 0xE7A1
@@ -65,3 +71,89 @@ class Evaluator:
     def close(self) -> None:
         for env in self.envs:
             env.close()
+
+
+@dataclass(frozen=True)
+class RunEvaluation:
+    """evaluate_run's answer: the result and which checkpoint it is of."""
+
+    result: EvalResult
+    env_steps: int
+    checkpoint: Path
+
+
+def load_run_policy(run_dir: Path) -> tuple[TrainConfig, BaseAlgorithm, VecNormalize | None, Checkpoint]:
+    """Config, model and normaliser of a run's newest usable checkpoint, and that checkpoint.
+
+    A damaged checkpoint is skipped with a warning (tsrl.agents.checkpoint.usable_checkpoint).
+    """
+    cfg = load_config(run_dir)
+    checkpoint = usable_checkpoint(run_dir, cfg.agent.normalize, for_training=False)
+    if checkpoint is None:
+        raise NotARunFolder(run_dir, "no checkpoint yet")
+    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    return cfg, model, normalizer, checkpoint
+
+
+def evaluate_run(run_dir: Path, episodes: int, seed: int | None = None) -> RunEvaluation:
+    """Success rate and mean final distance of a run's newest usable checkpoint over `episodes` seeded
+    episodes (seeds from `seed`, by default the run's)."""
+    cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
+    evaluator = Evaluator(cfg, eval_seeds(cfg.seed if seed is None else seed, episodes))
+    try:
+        result = evaluator.evaluate(model, normalizer)
+    finally:
+        evaluator.close()
+    return RunEvaluation(result, checkpoint.state.env_steps, checkpoint.path)
+
+
+def render_run(
+    run_dir: Path, out: Path, episodes: int = 2, seed: int | None = None, size: tuple[int, int] = (480, 480)
+) -> Path:
+    """Writes a video of the run's newest usable policy (deterministic), rendered off-screen; mp4, else
+    GIF. Returns its path."""
+    cfg, model, normalizer, _ = load_run_policy(run_dir)
+    kwargs = {"width": size[0], "height": size[1]} if cfg.is_tsrl_env else {}
+    env = make_env(cfg, render_mode="rgb_array", **kwargs)
+    frames = []
+    try:
+        for episode_seed in eval_seeds(cfg.seed if seed is None else seed, episodes):
+            obs, _ = env.reset(seed=episode_seed)
+            frames.append(env.render())
+            done = False
+            while not done:
+                batch = {k: v[None] for k, v in obs.items()}
+                if normalizer is not None:
+                    batch = normalizer.normalize_obs(batch)
+                action, _ = model.predict(batch, deterministic=True)
+                obs, _, terminated, truncated, _ = env.step(action[0])
+                frames.append(env.render())
+                done = terminated or truncated
+        fps = int(env.metadata.get("render_fps", 25))
+    finally:
+        env.close()  # closes the env's off-screen renderer
+    return write_video(frames, Path(out), fps)
+
+
+def write_video(frames: list[Any], out: Path, fps: int) -> Path:
+    """mp4 through imageio-ffmpeg's bundled ffmpeg; a GIF next to it if that is unavailable."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix.lower() != ".gif":
+        try:
+            import imageio.v2 as imageio
+
+            with imageio.get_writer(out, fps=fps, codec="libx264", macro_block_size=1, quality=7) as writer:
+                for frame in frames:
+                    writer.append_data(frame)
+            return out
+        except Exception as err:  # noqa: BLE001  (no ffmpeg: fall back to GIF)
+            print(
+                f"tsrl render: mp4 unavailable ({type(err).__name__}: {err}); writing a GIF", file=sys.stderr
+            )
+            out.unlink(missing_ok=True)
+            out = out.with_suffix(".gif")
+    from PIL import Image
+
+    images = [Image.fromarray(f) for f in frames]
+    images[0].save(out, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
+    return out

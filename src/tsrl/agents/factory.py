@@ -11,17 +11,20 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3 import DDPG, SAC, TD3
+import stable_baselines3
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
-from .config import AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
+from .config import ALGOS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 
-ALGOS: dict[str, type[OffPolicyAlgorithm]] = {"ddpg": DDPG, "td3": TD3, "sac": SAC}
+#: stable-baselines3's class of each algorithm name (DDPG for "ddpg", ...).
+ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
+    name: getattr(stable_baselines3, name.upper()) for name in ALGOS
+}
 #: Keys normalised by VecNormalize (all of a goal environment's observation dict).
 NORM_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 
@@ -94,4 +97,4 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo in ("ddpg", "td3") and a.action_noise > 0:
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
-    return ALGOS[a.algo]("MultiInputPolicy", env, **kwargs)
+    return ALGO_CLASSES[a.algo]("MultiInputPolicy", env, **kwargs)

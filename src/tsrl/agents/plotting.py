@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from .run_folder import load_config, read_progress
+
 #: Two-sided 95% Student-t quantiles by degrees of freedom (1..10); 1.96 beyond.
 _T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
 
@@ -33,8 +35,6 @@ def plot_learning_curves(run_dirs: Sequence[Path], out: Path, title: str | None 
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .training import load_config, read_progress
 
     groups: dict[str, list[list[dict[str, float]]]] = defaultdict(list)
     for run_dir in run_dirs:

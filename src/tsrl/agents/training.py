@@ -1,16 +1,7 @@
-"""train() and resume(): one run in a self-describing, resumable folder.
+"""train() and resume(): one run in a self-describing, resumable folder (layout: tsrl.agents.run_folder).
 
-```
-<out_dir>/<env>__<obs>__<action>__<algo>__s<seed>/
-    config.json        the exact, validated TrainConfig
-    progress.csv       one row per evaluation: env_steps, episodes, wall_time_s (training + evaluation,
-                       summed over resumed sessions), eval_time_s (its evaluation part),
-                       eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss
-    tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
-    checkpoints/       latest model, replay buffer, normaliser statistics, counters, RNG states
-    learning_curve.png written when the run completes
-```
-
+One process trains a run folder at a time (RunLock). Resuming uses the newest checkpoint that passes
+verification and falls back to the previous one if it is damaged (tsrl.agents.checkpoint).
 Evaluations and checkpoints happen at "safe points": after an update, where the next episode starts.
 SIGINT and SIGTERM are noted and honoured at the next safe point (at most one update period later):
 a checkpoint is written and TrainingInterrupted raised. A second SIGINT stops at once, without one.
@@ -19,11 +10,11 @@ a checkpoint is written and TrainingInterrupted raised. A second SIGINT stops at
 from __future__ import annotations
 
 import csv
-import json
 import math
-import os
+import shutil
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, Self
@@ -36,25 +27,24 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
-from .checkpoint import RunState, latest_checkpoint, load_checkpoint, read_state, save_checkpoint
-from .config import CONFIG_FILE, TrainConfig, from_dict, load_config
+from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
+from .config import TrainConfig, from_dict
 from .evaluation import Evaluator, eval_seeds
-from .factory import ALGOS, buffer_capacity, make_agent, make_vec_env
-
-CONFIG = CONFIG_FILE
-PROGRESS = "progress.csv"
-TENSORBOARD = "tb"
-LEARNING_CURVE = "learning_curve.png"
-PROGRESS_COLUMNS: tuple[str, ...] = (
-    "env_steps",
-    "episodes",
-    "wall_time_s",
-    "eval_time_s",
-    "eval_success_rate",
-    "eval_final_distance_m",
-    "train_success_rate",
-    "critic_loss",
-    "actor_loss",
+from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
+from .plotting import plot_learning_curves
+from .run_folder import (
+    CONFIG_FILE,
+    LEARNING_CURVE,
+    PROGRESS,
+    PROGRESS_COLUMNS,
+    TENSORBOARD,
+    RunLock,
+    RunState,
+    checkpoint_dirs,
+    load_config,
+    read_progress,
+    truncate_progress,
+    write_json_atomic,
 )
 
 
@@ -78,42 +68,57 @@ def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> P
     Raises InvalidConfig if the folder already holds a run (resume it instead).
     """
     run_dir = Path(out_dir) / cfg.run_name
-    if (run_dir / CONFIG).exists():
+    if (run_dir / CONFIG_FILE).exists():
         raise InvalidConfig(
             f"run folder {run_dir} already exists; continue it with `tsrl train --resume {run_dir}` "
             "or choose another --out-dir"
         )
     session = _Session(cfg, run_dir, progress_bar)  # builds the envs first: bad obs/action fail here
-    run_dir.mkdir(parents=True, exist_ok=True)
-    _write_json_atomic(run_dir / CONFIG, cfg.to_dict())
-    session.run(checkpoint=None)
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        with RunLock(run_dir):
+            write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
+            session.run(checkpoint=None)
+    finally:
+        session.close()
     return run_dir
 
 
 def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar: bool = True) -> Path:
-    """Continues a run from its latest checkpoint (or from scratch if it has none), optionally with a
-    new budget; counters, replay buffer and normaliser statistics come back."""
+    """Continues a run from its newest usable checkpoint (or from scratch if it has none), optionally
+    with a new budget; counters, replay buffer and normaliser statistics come back.
+
+    Damaged checkpoints newer than the one used are removed before training restarts from it.
+    Raises RunLocked while another process trains the run, NoUsableCheckpoint (leaving the folder as
+    it was) when every checkpoint is damaged.
+    """
     run_dir = Path(run_dir)
     cfg = load_config(run_dir)
-    checkpoint = latest_checkpoint(run_dir)
-    done = read_state(checkpoint).env_steps if checkpoint is not None else 0
-    if total_timesteps is not None and total_timesteps < done:
-        raise InvalidConfig(f"--total-timesteps {total_timesteps} is below the {done} env steps already done")
-    if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
-        cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
-        _write_json_atomic(run_dir / CONFIG, cfg.to_dict())
-    session = _Session(cfg, run_dir, progress_bar)
-    session.run(checkpoint=checkpoint)
+    with RunLock(run_dir):
+        checkpoint = usable_checkpoint(run_dir, cfg.agent.normalize, for_training=True)
+        done = checkpoint.state.env_steps if checkpoint is not None else 0
+        if total_timesteps is not None and total_timesteps < done:
+            raise InvalidConfig(
+                f"--total-timesteps {total_timesteps} is below the {done} env steps already done"
+            )
+        if checkpoint is not None:  # damaged ones newer than it: the run goes past their steps again
+            for newer in checkpoint_dirs(run_dir):
+                if newer.name > checkpoint.path.name:
+                    shutil.rmtree(newer)
+        if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
+            cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
+            write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
+        session = _Session(cfg, run_dir, progress_bar)
+        try:
+            session.run(checkpoint=checkpoint)
+        finally:
+            session.close()
     return run_dir
 
 
-def read_progress(run_dir: Path | str) -> list[dict[str, float]]:
-    """progress.csv as a list of rows (floats; NaN for empty cells)."""
-    path = Path(run_dir) / PROGRESS
-    if not path.is_file():
-        return []
-    with open(path, newline="") as f:
-        return [{k: _to_float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+def in_main_thread() -> bool:
+    """Whether this is the main thread (the only one that may install signal handlers)."""
+    return threading.current_thread() is threading.main_thread()
 
 
 class _Session:
@@ -129,35 +134,36 @@ class _Session:
         self.evaluator = Evaluator(cfg, eval_seeds(cfg.seed, cfg.eval_episodes))
         self.stop_signal: int | None = None
 
-    def run(self, checkpoint: Path | None) -> None:
+    def run(self, checkpoint: Checkpoint | None) -> None:
         cfg = self.cfg
-        try:
-            if checkpoint is None:
-                model = make_agent(cfg, self.venv)
-                state = RunState(0, 0, 0.0, 0, cfg.checkpoint_freq)
+        if checkpoint is None:
+            model = make_agent(cfg, self.venv)
+            state = RunState(0, 0, 0.0, 0, cfg.checkpoint_freq)
+        else:
+            model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)
+            state = checkpoint.state
+            episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
+            model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
+            model.buffer_size = model.replay_buffer.buffer_size
+            # The env restarts with a new episode, seeded from (seed, episodes done).
+            self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
+        last_row = truncate_progress(self.run_dir, state.env_steps if checkpoint else -1)
+        model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
+        callback = _SafePointCallback(self, state, last_row)
+        remaining = cfg.total_timesteps - model.num_timesteps
+        with _SignalCatcher(self):
+            if remaining > 0:
+                model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
             else:
-                model, state = load_checkpoint(checkpoint, ALGOS[cfg.agent.algo], self.venv, self.normalizer)
-                episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
-                model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
-                model.buffer_size = model.replay_buffer.buffer_size
-                # The env restarts with a new episode, seeded from (seed, episodes done).
-                self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
-            last_row = _truncate_progress(self.run_dir / PROGRESS, state.env_steps if checkpoint else -1)
-            model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
-            callback = _SafePointCallback(self, state, last_row)
-            remaining = cfg.total_timesteps - model.num_timesteps
-            with _SignalCatcher(self):
-                if remaining > 0:
-                    model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
-                else:
-                    callback.init_callback(model)
-                    callback.on_training_end()
-            model.logger.close()
-            callback.close()
-            _summary(self.run_dir, callback)
-        finally:
-            self.evaluator.close()
-            self.venv.close()
+                callback.init_callback(model)
+                callback.on_training_end()
+        model.logger.close()
+        callback.close()
+        _summary(self.run_dir, callback)
+
+    def close(self) -> None:
+        self.evaluator.close()
+        self.venv.close()
 
 
 class _SignalCatcher:
@@ -168,7 +174,7 @@ class _SignalCatcher:
         self.previous: dict[int, Any] = {}
 
     def __enter__(self) -> Self:
-        if _in_main_thread():
+        if in_main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self.previous[sig] = signal.signal(sig, self._handle)
         return self
@@ -310,45 +316,7 @@ def _fmt(value: float | None) -> str:
     return "" if value is None or not math.isfinite(float(value)) else f"{float(value):.10g}"
 
 
-def _to_float(value: str | None) -> float:
-    try:
-        return float(value) if value not in (None, "") else float("nan")
-    except ValueError:
-        return float("nan")
-
-
-def _truncate_progress(path: Path, last_step: int) -> int:
-    """Keeps the header and the rows at or before `last_step` (the checkpoint); drops torn lines.
-
-    Returns the env steps of the last row kept (-1 if none).
-    """
-    if not path.is_file():
-        return -1
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    kept = [
-        r
-        for r in rows
-        if r.get("env_steps", "").isdigit() and int(r["env_steps"]) <= last_step and None not in r.values()
-    ]
-    tmp = path.with_suffix(".csv.tmp")
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=PROGRESS_COLUMNS, extrasaction="ignore")
-        writer.writeheader()
-        writer.writerows(kept)
-    os.replace(tmp, path)
-    return int(kept[-1]["env_steps"]) if kept else -1
-
-
-def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, path)
-
-
 def _summary(run_dir: Path, callback: _SafePointCallback) -> None:
-    from .plotting import plot_learning_curves
-
     plot_learning_curves([run_dir], run_dir / LEARNING_CURVE)
     rows = read_progress(run_dir)
     last = rows[-1] if rows else {}
@@ -360,9 +328,3 @@ def _summary(run_dir: Path, callback: _SafePointCallback) -> None:
         f"wall time {last.get('wall_time_s', float('nan')):.0f} s\n"
         f"learning curve: {run_dir / LEARNING_CURVE}"
     )
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()

@@ -26,9 +26,10 @@ from typing import Any
 import numpy as np
 
 from ..agents.config import TrainConfig
-from ..agents.training import CONFIG, load_config, read_progress
+from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..exceptions import InvalidConfig, TsrlError
 from .config import EXPERIMENT_FILE, Key, config_labels
+from .plots import plot_curves
 from .runner import ERROR_FILE
 
 RESULT_COLUMNS: tuple[str, ...] = (
@@ -59,10 +60,10 @@ def find_runs(results_dir: Path) -> list[Path]:
     results_dir = Path(results_dir)
     if not results_dir.is_dir():
         raise InvalidConfig(f"results folder {results_dir} does not exist")
-    runs = sorted(p for p in results_dir.iterdir() if (p / CONFIG).is_file())
+    runs = sorted(p for p in results_dir.iterdir() if (p / CONFIG_FILE).is_file())
     if not runs:
         raise InvalidConfig(
-            f"no run folders in {results_dir} (a run folder holds {CONFIG}); pass an experiment's "
+            f"no run folders in {results_dir} (a run folder holds {CONFIG_FILE}); pass an experiment's "
             "results folder, e.g. results/quick-reach"
         )
     return runs
@@ -242,8 +243,6 @@ def write_csv(path: Path, rows: list[dict[str, Any]], columns: list[str] | tuple
 def write_report(results_dir: Path | str) -> list[Path]:
     """Writes results.csv, summary.csv, summary.md and the two learning-curve PNGs into
     `results_dir`; returns their paths."""
-    from .plots import plot_curves
-
     results_dir = Path(results_dir)
     run_dirs = find_runs(results_dir)
     try:

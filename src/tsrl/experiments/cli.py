@@ -1,81 +1,74 @@
 """`tsrl experiment` and `tsrl report`: run an experiment's grid of runs; aggregate a results folder.
 
-tsrl.cli calls add_experiment_commands(); each command's handler is `args.handler`. Bad input raises
-TsrlError, which tsrl.cli turns into one line on stderr and exit code 2.
+tsrl.cli adds EXPERIMENT_COMMANDS to its commands (tyro dataclasses: fields are options, run() the
+work). Bad input raises TsrlError, which tsrl.cli turns into one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated
+
+from tyro.conf import Positional, arg
+
+from ..exceptions import InvalidConfig
 
 #: Exit codes of `tsrl experiment` besides 0 (every run at its budget) and 2 (bad input).
 EXIT_FAILED_RUNS = 1
 EXIT_INTERRUPTED = 130
 
 
-def add_experiment_commands(commands: Any) -> None:
-    """Adds `experiment` and `report` to the `tsrl` subparsers `commands`."""
-    p_exp = commands.add_parser(
-        "experiment",
-        help="run every run of an experiment definition (experiments/NAME.toml) and report it",
-        description="Runs an experiment's grid (env x obs x action x algo x seeds) into <out-dir>/<name>/: "
-        "finished runs are skipped, interrupted ones resume from their checkpoints, a failing one is "
-        "reported (error.txt in its folder) while the others go on. Then writes the report (tsrl report).",
-    )
-    p_exp.add_argument(
-        "experiment",
-        metavar="NAME_OR_FILE",
-        help="an experiment name (experiments/NAME.toml) or the path of a .toml definition",
-    )
-    p_exp.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray)",
-    )
-    p_exp.add_argument(
-        "--ray",
-        metavar="ADDRESS|local",
-        default=None,
-        help="run on the Ray cluster at ADDRESS (e.g. ray://head:10001 or auto), or on a new local Ray "
-        "instance with 'local' (needs pip install 'tsrl[ray]'); default: local worker processes",
-    )
-    p_exp.add_argument(
-        "--out-dir", type=Path, default=Path("results"), help="parent of the experiment folder"
-    )
-    p_exp.add_argument(
-        "--report",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="write the report (results.csv, summary.csv, summary.md, learning curves) when done",
-    )
-    p_exp.set_defaults(handler=_cmd_experiment)
+@dataclass(frozen=True)
+class Experiment:
+    """Run every run of an experiment definition (experiments/NAME.toml) and report it."""
 
-    p_report = commands.add_parser(
-        "report",
-        help="aggregate an experiment's runs: results.csv, summary.csv, summary.md, learning curves",
-        description="Aggregates the run folders in RESULTS_DIR (e.g. results/quick-reach) into results.csv "
-        "(one row per run and evaluation), summary.csv and summary.md (per configuration: episodes and env "
-        "steps to 50% and 90% success, final success, 95% bootstrap intervals across seeds) and "
-        "learning_curves_episodes.png / learning_curves_steps.png.",
-    )
-    p_report.add_argument(
-        "results_dir", type=Path, metavar="RESULTS_DIR", help="an experiment's results folder"
-    )
-    p_report.set_defaults(handler=_cmd_report)
+    experiment: Positional[Annotated[str, arg(metavar="NAME_OR_FILE")]]
+    """An experiment name (experiments/NAME.toml) or the path of a .toml definition. Its grid (env x obs
+    x action x algo x seeds) runs into <out-dir>/<name>/: finished runs are skipped, interrupted ones
+    resume from their checkpoints, a failing one is reported (error.txt in its folder) while the others
+    go on; then the report is written (tsrl report)."""
+    workers: Annotated[int | None, arg(metavar="N")] = None
+    """Runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray)."""
+    ray: Annotated[str | None, arg(metavar="ADDRESS|local")] = None
+    """Run on the Ray cluster at ADDRESS (e.g. ray://head:10001 or auto), or on a new local Ray instance
+    with 'local' (needs pip install 'tsrl[ray]'); default: local worker processes."""
+    out_dir: Path = Path("results")
+    """Parent of the experiment folder."""
+    report: bool = True
+    """Write the report (results.csv, summary.csv, summary.md, learning curves) when done."""
+
+    def __post_init__(self) -> None:
+        if self.workers is not None and self.workers < 1:
+            raise InvalidConfig(f"--workers must be >= 1; got {self.workers}")
+
+    def run(self) -> int:
+        return _cmd_experiment(self)
 
 
-def _cmd_experiment(args: argparse.Namespace) -> int:
-    from ..exceptions import InvalidConfig
+@dataclass(frozen=True)
+class Report:
+    """Aggregate an experiment's runs: results.csv, summary.csv, summary.md, learning curves."""
+
+    results_dir: Positional[Annotated[Path, arg(metavar="RESULTS_DIR")]]
+    """An experiment's results folder (e.g. results/quick-reach). Its run folders are aggregated into
+    results.csv (one row per run and evaluation), summary.csv and summary.md (per configuration:
+    episodes and env steps to 50% and 90% success, final success, 95% bootstrap intervals across
+    seeds) and learning_curves_episodes.png / learning_curves_steps.png."""
+
+    def run(self) -> int:
+        return _cmd_report(self)
+
+
+#: The commands tsrl.cli adds to `tsrl`.
+EXPERIMENT_COMMANDS: dict[str, type] = {"experiment": Experiment, "report": Report}
+
+
+def _cmd_experiment(args: Experiment) -> int:
     from .config import load_experiment, resolve_experiment
 
-    if args.workers is not None and args.workers < 1:
-        raise InvalidConfig(f"--workers must be >= 1; got {args.workers}")
     if args.ray is not None and importlib.util.find_spec("ray") is None:
         raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'")
     exp = load_experiment(resolve_experiment(args.experiment))
@@ -106,7 +99,7 @@ def _cmd_experiment(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_report(args: argparse.Namespace) -> int:
+def _cmd_report(args: Report) -> int:
     from .aggregate import write_report
 
     for path in write_report(args.results_dir):

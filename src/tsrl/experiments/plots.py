@@ -1,14 +1,29 @@
 """Learning curves of an experiment: eval success rate vs episodes or env steps, one colour per
-configuration, mean across seeds with its 95% bootstrap interval (tsrl.experiments.aggregate)."""
+configuration, mean across seeds with its 95% interval (computed by tsrl.experiments.aggregate, which
+calls this module; nothing here imports it)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Protocol
+
+import numpy as np
 
 from ..agents.plotting import save_success_plot
-from .aggregate import Curve
-from .config import config_labels
+from .config import Key, config_labels
+
+
+class Curve(Protocol):
+    """What a learning curve offers the plot (tsrl.experiments.aggregate.Curve has it)."""
+
+    key: Key
+    seeds: tuple[int, ...]
+    env_steps: np.ndarray
+    episodes: np.ndarray
+
+    def stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mean, low and high of the interval across seeds at each evaluation."""
+        ...
 
 
 def plot_curves(curves: list[Curve], x: Literal["episodes", "env_steps"], out: Path, title: str) -> Path:

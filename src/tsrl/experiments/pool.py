@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from ..agents.config import TrainConfig
-from ..agents.training import read_progress
+from ..agents.run_folder import read_progress
+from ..agents.training import in_main_thread
 from ..exceptions import InvalidConfig
 from .config import EXPERIMENT_FILE, ExperimentConfig, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
@@ -127,7 +128,7 @@ def _run_local(
     def on_sigterm(signum: int, frame: object) -> None:
         raise _Stop
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
     try:
         while pool:
             try:
@@ -198,12 +199,6 @@ def _collect(w: _Worker, exp_dir: Path, stopping: bool) -> RunOutcome:
     return RunOutcome(name, "failed", 0, seconds, error=error)
 
 
-def _main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
-
-
 # -- Ray -------------------------------------------------------------------------------------------
 def _ray_run(cfg: TrainConfig, exp_dir: str) -> RunOutcome:
     """Body of a Ray task: one run (Ray sets OMP_NUM_THREADS to the task's 1 CPU)."""
@@ -243,7 +238,7 @@ def _run_ray(
     def on_sigterm(signum: int, frame: object) -> None:
         raise _Stop
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
     try:
         while pending or running:
             try:

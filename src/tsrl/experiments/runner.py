@@ -16,9 +16,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from ..agents.checkpoint import latest_checkpoint, read_state
 from ..agents.config import TrainConfig
-from ..agents.training import CONFIG, TrainingInterrupted, load_config, read_progress, resume, train
+from ..agents.run_folder import (
+    CONFIG_FILE,
+    DamagedCheckpoint,
+    checkpoint_dirs,
+    load_config,
+    read_progress,
+    read_state,
+)
+from ..agents.training import TrainingInterrupted, resume, train
 from ..exceptions import InvalidConfig
 
 ERROR_FILE = "error.txt"
@@ -46,9 +53,11 @@ class RunOutcome:
 
 
 def checkpoint_steps(run_dir: Path) -> int:
-    """Env steps of the run's latest complete checkpoint (0 if it has none)."""
-    checkpoint = latest_checkpoint(run_dir)
-    return read_state(checkpoint).env_steps if checkpoint is not None else 0
+    """Env steps of the run's latest checkpoint with a readable state.json (0 if it has none)."""
+    for checkpoint in reversed(checkpoint_dirs(run_dir)):
+        with contextlib.suppress(DamagedCheckpoint):
+            return read_state(checkpoint).env_steps
+    return 0
 
 
 def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "partial"]:
@@ -57,7 +66,7 @@ def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "pa
 
     Raises InvalidConfig if the folder holds a run of another config (anything but the budget differs).
     """
-    if not (run_dir / CONFIG).is_file():
+    if not (run_dir / CONFIG_FILE).is_file():
         return "new"
     existing = load_config(run_dir)
     theirs, ours = existing.to_dict(), cfg.to_dict()

@@ -1,0 +1,253 @@
+"""A run folder: its file names, reading its config and progress, its checkpoints, and its lock.
+
+```
+<out_dir>/<env>__<obs>__<action>__<algo>__s<seed>/
+    config.json        the exact, validated TrainConfig
+    progress.csv       one row per evaluation: env_steps, episodes, wall_time_s (training + evaluation,
+                       summed over resumed sessions), eval_time_s (its evaluation part),
+                       eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss
+    tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
+    checkpoints/       the last two complete checkpoints, step_<env steps>/ each: model.zip,
+                       replay_buffer.pkl, vecnormalize.pkl, rng.pkl, state.json (written last)
+    learning_curve.png written when the run completes
+    train.lock         while a process trains the run: that process's id
+```
+
+Nothing here imports torch or stable-baselines3: the CLI checks a run folder before they load.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import fcntl
+import json
+import os
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any, Self
+
+from ..exceptions import TsrlError
+from .config import TrainConfig, from_dict
+
+CONFIG_FILE = "config.json"
+PROGRESS = "progress.csv"
+TENSORBOARD = "tb"
+LEARNING_CURVE = "learning_curve.png"
+CHECKPOINTS = "checkpoints"
+LOCK = "train.lock"
+#: Files of one checkpoint folder; STATE is written last and marks the checkpoint complete.
+MODEL = "model.zip"
+REPLAY_BUFFER = "replay_buffer.pkl"
+NORMALIZER = "vecnormalize.pkl"
+RNG = "rng.pkl"
+STATE = "state.json"
+#: Complete checkpoints kept: the newest, and one to fall back to if the newest is damaged.
+KEEP_CHECKPOINTS = 2
+PROGRESS_COLUMNS: tuple[str, ...] = (
+    "env_steps",
+    "episodes",
+    "wall_time_s",
+    "eval_time_s",
+    "eval_success_rate",
+    "eval_final_distance_m",
+    "train_success_rate",
+    "critic_loss",
+    "actor_loss",
+)
+
+
+class NotARunFolder(TsrlError):
+    """A path that is not a run folder written by `tsrl train`."""
+
+    def __init__(self, path: Path, why: str):
+        super().__init__(
+            f"{path} is not a run folder ({why}); a run folder holds {CONFIG_FILE} written by `tsrl train`"
+        )
+
+
+class DamagedCheckpoint(TsrlError):
+    """A checkpoint file that cannot be used (unreadable, cut short, or counters that disagree)."""
+
+    def __init__(self, path: Path, why: str):
+        self.path = path
+        self.why = why
+        super().__init__(f"{path}: {why}")
+
+
+class NoUsableCheckpoint(TsrlError):
+    """Every checkpoint of a run is damaged; the message names each damaged file."""
+
+    def __init__(self, run_dir: Path, damaged: list[DamagedCheckpoint]):
+        super().__init__(
+            f"no usable checkpoint in {run_dir}: " + "; ".join(str(d) for d in damaged) + " (nothing changed)"
+        )
+
+
+class RunLocked(TsrlError):
+    """Another live process is training the run."""
+
+    def __init__(self, run_dir: Path, pid: str):
+        super().__init__(f"{run_dir} is being trained by process {pid}; wait for it or stop it first")
+
+
+@dataclass(frozen=True)
+class RunState:
+    """Counters of a run at a checkpoint."""
+
+    env_steps: int
+    episodes: int
+    wall_time_s: float
+    """Training wall time up to the checkpoint, evaluations included, summed over resumed sessions."""
+    next_eval: int
+    next_checkpoint: int
+    eval_time_s: float = 0.0
+    """Part of wall_time_s spent in evaluations."""
+
+
+def load_config(run_dir: Path | str) -> TrainConfig:
+    """The TrainConfig of a run folder (validated)."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise NotARunFolder(run_dir, "no such folder")
+    path = run_dir / CONFIG_FILE
+    if not path.is_file():
+        raise NotARunFolder(run_dir, f"no {CONFIG_FILE}")
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
+    return from_dict(TrainConfig, data)
+
+
+def read_progress(run_dir: Path | str) -> list[dict[str, float]]:
+    """progress.csv as a list of rows (floats; NaN for empty cells)."""
+    path = Path(run_dir) / PROGRESS
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        return [{k: _to_float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def truncate_progress(run_dir: Path, last_step: int) -> int:
+    """Keeps progress.csv's header and its rows at or before `last_step` (the checkpoint's env steps);
+    drops rows after it and a torn last line. Returns the env steps of the last row kept (-1 if none)."""
+    path = run_dir / PROGRESS
+    if not path.is_file():
+        return -1
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    kept = [
+        r
+        for r in rows
+        if r.get("env_steps", "").isdigit() and int(r["env_steps"]) <= last_step and None not in r.values()
+    ]
+    tmp = path.with_suffix(".csv.tmp")
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=PROGRESS_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(kept)
+    os.replace(tmp, path)
+    return int(kept[-1]["env_steps"]) if kept else -1
+
+
+def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """Writes `data` as JSON to a temporary file renamed over `path`: readers never see half a file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    os.replace(tmp, path)
+
+
+def checkpoint_path(run_dir: Path, env_steps: int) -> Path:
+    """The folder of the checkpoint at `env_steps`."""
+    return run_dir / CHECKPOINTS / f"step_{env_steps:010d}"
+
+
+def checkpoint_dirs(run_dir: Path | str) -> list[Path]:
+    """The checkpoint folders of a run, oldest first (not verified).
+
+    Each was renamed into place whole, so every one is complete unless damaged afterwards.
+    """
+    root = Path(run_dir) / CHECKPOINTS
+    if not root.is_dir():
+        return []
+    dirs = [p for p in root.glob("step_*") if p.is_dir() and p.name.removeprefix("step_").isdigit()]
+    return sorted(dirs, key=lambda p: int(p.name.removeprefix("step_")))
+
+
+def latest_checkpoint(run_dir: Path | str) -> Path | None:
+    """The checkpoint with the most env steps (not verified), None if there is none."""
+    dirs = checkpoint_dirs(run_dir)
+    return dirs[-1] if dirs else None
+
+
+def read_state(checkpoint: Path) -> RunState:
+    """The counters of a checkpoint; DamagedCheckpoint if state.json is unreadable or disagrees with
+    the checkpoint's folder name."""
+    path = checkpoint / STATE
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise DamagedCheckpoint(path, f"unreadable ({type(err).__name__}: {err})") from None
+    names = [f.name for f in fields(RunState)]
+    if not isinstance(data, dict) or not set(names[:5]) <= set(data) <= set(names):
+        raise DamagedCheckpoint(path, f"not a checkpoint state; expected keys {', '.join(names)}")
+    if any(isinstance(v, bool) or not isinstance(v, int | float) or v < 0 for v in data.values()):
+        raise DamagedCheckpoint(path, f"counters must be numbers >= 0; got {data}")
+    state = RunState(**data)
+    if checkpoint.name != f"step_{state.env_steps:010d}":
+        raise DamagedCheckpoint(
+            path, f"env_steps {state.env_steps} disagrees with the folder {checkpoint.name}"
+        )
+    return state
+
+
+class RunLock:
+    """`with RunLock(run_dir):` one training process per run folder.
+
+    The lock is an flock on `train.lock`, which holds the owner's process id. The kernel releases it
+    when its process ends, however it ends, so a lock left by a killed process never blocks. Entering
+    raises RunLocked, naming the owner's process id, while a live process holds it.
+    """
+
+    def __init__(self, run_dir: Path):
+        self.path = run_dir / LOCK
+        self.fd: int | None = None
+
+    def __enter__(self) -> Self:
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                pid = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise RunLocked(self.path.parent, pid) from None
+            with contextlib.suppress(FileNotFoundError):
+                if os.fstat(fd).st_ino == os.stat(self.path).st_ino:
+                    break  # still the file at the path: not one its previous owner just removed
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self.fd = fd
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.fd is not None:
+            self.path.unlink(missing_ok=True)
+            os.close(self.fd)
+            self.fd = None
+
+
+def check_not_locked(run_dir: Path) -> None:
+    """Raises RunLocked if a live process trains `run_dir` (without taking the lock)."""
+    if (run_dir / LOCK).is_file():
+        with RunLock(run_dir):
+            pass
+
+
+def _to_float(value: str | None) -> float:
+    try:
+        return float(value) if value not in (None, "") else float("nan")
+    except ValueError:
+        return float("nan")
