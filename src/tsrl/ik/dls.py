@@ -75,9 +75,10 @@ class DlsSolver:
     .. math:: \Delta q = d + J_W^T (J_W J_W^T + \lambda I)^{-1} (e - J_W d),
               \quad d = k\,(q_{rest} - q)
 
-    (d = 0 without a posture), ||dq|| <= max_step, then q + dq clipped to the joint limits. On an arm
-    with more joints than task rows, d moves the arm toward the rest posture in the (damped) null
-    space of the task: the TCP stays where the task puts it.
+    (d = 0 without a posture), ||dq|| <= max_step. A joint that q + dq would take out of its range is
+    held at the limit and the step solved again for the others; q + dq is finally clipped to the
+    limits. On an arm with more joints than task rows, d moves the arm toward the rest posture in the
+    (damped) null space of the task: the TCP stays where the task puts it (docs/ik.md).
 
     Args:
         model: the MuJoCo model the task map was built for.
