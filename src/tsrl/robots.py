@@ -22,7 +22,7 @@ or from a few lines of TOML (`load_robot("arm3.toml")`; paths are relative to th
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,18 @@ from .kinematics import arm_qpos_indices, controlled_joints, name_to_id
 from .taskmaps import resolve_frame
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+
+
+class UnknownRobot(UnknownName):
+    """A robot that is neither a built-in name nor an existing .toml file."""
+
+    def __init__(self, name: str, known: Iterable[str]):
+        KeyError.__init__(
+            self,
+            f"unknown robot {name!r}; built-in robots: {', '.join(sorted(known))} (or a robot's .toml file)",
+        )
+
+
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
 
 
@@ -211,8 +223,8 @@ def load_robot(robot: str | Path | Robot) -> Robot:
     """A built-in robot by name (`ROBOTS`), a description from a TOML file, or `robot` itself.
 
     Raises:
-        UnknownName: neither a built-in name nor an existing .toml file (the message lists the built-in
-            robots).
+        UnknownRobot: neither a built-in name nor an existing .toml file (the message lists the
+            built-in robots); an `UnknownName`.
         InvalidConfig: a TOML file with unknown or missing keys.
     """
     if isinstance(robot, Robot):
@@ -221,7 +233,7 @@ def load_robot(robot: str | Path | Robot) -> Robot:
         return ROBOTS[robot]
     path = Path(robot)
     if path.suffix.lower() != ".toml" or not path.is_file():
-        raise UnknownName("robot", str(robot), [*ROBOTS, "<path of a .toml file>"])
+        raise UnknownRobot(str(robot), ROBOTS)
     with path.open("rb") as f:
         try:
             spec = tomllib.load(f)

@@ -431,3 +431,17 @@ def test_bad_initial_value_and_state_are_rejected(ur5e, pose_map):
     data.qpos[2] = np.nan
     with pytest.raises(InvalidConfig, match="non-finite joint positions"):
         solver.solve(data, target)
+
+
+def test_solver_pickles_and_solves_the_same(ur5e, pose_map, rng):
+    import pickle
+
+    model, data = ur5e
+    solver = DlsSolver(model, pose_map, options=IKOptions(posture=tuple(HOME_Q)))
+    target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
+    copy = pickle.loads(pickle.dumps(solver))
+    scratch = mujoco.MjData(copy.model)
+    scratch.qpos[:] = data.qpos
+    first = solver.solve(data, target)
+    second = copy.solve(scratch, target)
+    np.testing.assert_array_equal(first.q, second.q)

@@ -7,6 +7,7 @@ The maths and the benchmark behind the defaults are in docs/ik.md.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -34,6 +35,9 @@ class _Workspace:
         self.A = np.empty((m, m))
         self.diag = self.A.reshape(-1)[:: m + 1]
         self.x = np.empty(m)
+
+    def __reduce__(self) -> tuple:
+        return (_Workspace, (self.x.size,))  # a fresh one: pickle would cut diag off from A
 
 
 def _dls(J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None, ws: _Workspace) -> np.ndarray:
@@ -66,6 +70,11 @@ def _dls(J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None, ws:
     return dq
 
 
+def _float_difference(task_map: TaskMap, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """task_map.difference(a, b) as a C-contiguous float64 array (a map of the caller's may return any)."""
+    return np.ascontiguousarray(task_map.difference(a, b), dtype=np.float64)
+
+
 class DlsSolver:
     r"""Damped least-squares IK of one task map over the controlled joints of a model.
 
@@ -75,9 +84,10 @@ class DlsSolver:
     .. math:: \Delta q = d + J_W^T (J_W J_W^T + \lambda I)^{-1} (e - J_W d),
               \quad d = k\,(q_{rest} - q)
 
-    (d = 0 without a posture), ||dq|| <= max_step, then q + dq clipped to the joint limits. On an arm
-    with more joints than task rows, d moves the arm toward the rest posture in the (damped) null
-    space of the task: the TCP stays where the task puts it.
+    (d = 0 without a posture), ||dq|| <= max_step. A joint that q + dq would take out of its range is
+    held at the limit and the step solved again for the others; q + dq is finally clipped to the
+    limits. On an arm with more joints than task rows, d moves the arm toward the rest posture in the
+    (damped) null space of the task: the TCP stays where the task puts it (docs/ik.md).
 
     Args:
         model: the MuJoCo model the task map was built for.
@@ -122,7 +132,7 @@ class DlsSolver:
         if isinstance(task_map, Stack):  # its own difference is fast for one value
             self._difference = task_map.difference
         else:
-            self._difference = lambda a, b: np.ascontiguousarray(task_map.difference(a, b), dtype=np.float64)
+            self._difference = partial(_float_difference, task_map)
         self._weights = self._weight_rows = None
         if options.weights is not None:
             self._weights = _vector("weights", options.weights, task_map.dim, "(one per row of the task map)")
