@@ -118,9 +118,10 @@ def add_config_options(parser: argparse.ArgumentParser, cls: type) -> list[tuple
         elif hint is bool:
             kwargs["action"] = argparse.BooleanOptionalAction
         elif typing.get_origin(hint) is tuple:
-            kwargs["type"] = int
+            item = typing.get_args(hint)[0]
+            kwargs["type"] = item
             kwargs["nargs"] = "+"
-            kwargs["metavar"] = "N"
+            kwargs["metavar"] = "N" if item is int else "KEY"
         else:
             kwargs["type"] = hint
             kwargs["metavar"] = hint.__name__.upper()
