@@ -11,7 +11,7 @@ import pytest
 from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
 from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize, variants
-from tsrl.experiments.config import load_experiment, resolve_experiment
+from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
 
 REPO = Path(__file__).resolve().parents[2]
 GOOD = """
@@ -133,3 +133,56 @@ def test_variants_name_only_the_settings_that_differ():
     plain = TrainConfig(agent=AgentConfig(her=HerConfig(relabel="plain")), total_timesteps=99)
     assert variants([TrainConfig(seed=0), TrainConfig(seed=1, checkpoint_freq=7)]) == ["", ""]
     assert variants([TrainConfig(), plain]) == ["agent.her.relabel=feature", "agent.her.relabel=plain"]
+
+
+COMPARED = """
+obs = ["fs1", "baseline"]
+[[comparisons]]
+a = "fs1"
+b = "baseline"
+metric = "auc"
+direction = "greater"
+min_effect = 0.05
+[[comparisons]]
+a = "baseline"
+b = "fs1"
+metric = "final_success"
+"""
+
+
+def test_comparisons_are_parsed_with_their_defaults(tmp_path):
+    path = tmp_path / "compared.toml"
+    path.write_text(COMPARED)
+    exp = load_experiment(path, check_envs=False)
+    assert exp.arms() == ["fs1", "baseline"]
+    assert exp.comparisons == (
+        Comparison(a="fs1", b="baseline", metric="auc", direction="greater", min_effect=0.05),
+        Comparison(a="baseline", b="fs1", metric="final_success", direction="greater", min_effect=None),
+    )
+    assert exp.to_dict()["comparisons"][0]["min_effect"] == 0.05  # goes to experiment.json for the report
+
+
+@pytest.mark.parametrize(
+    ("table", "expected"),
+    [
+        ('a = "fs9"\nb = "fs1"', "comparison 1: unknown arm 'fs9'; accepted: fs1, baseline"),
+        ('a = "fs1"\nb = "fs1"', "comparison 1: compares arm 'fs1' with itself"),
+        ('a = "fs1"', "comparison 1: missing b"),
+        ('a = "fs1"\nb = "baseline"\nmetric = "steps"', "unknown metric 'steps'; accepted: auc, final_success"),
+        ('a = "fs1"\nb = "baseline"\ndirection = "up"', "unknown direction 'up'; accepted: greater, less, two-sided"),
+        ('a = "fs1"\nb = "baseline"\nmin_effect = -1', "min_effect must be a number > 0; got -1"),
+        ('a = "fs1"\nb = "baseline"\nalpha = 0.1', "unknown Comparison keys ['alpha']; accepted: a, b, metric"),
+    ],
+)  # fmt: skip
+def test_bad_comparison_is_one_line_naming_the_accepted_values(table, expected, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(f'obs = ["fs1", "baseline"]\n[[comparisons]]\n{table}\n')
+    with pytest.raises(InvalidConfig) as err:
+        load_experiment(path, check_envs=False)
+    assert str(err.value).startswith(f"{path}: ") and "\n" not in str(err.value)
+    assert expected in str(err.value)
+
+
+def test_arms_name_only_what_varies():
+    exp = ExperimentConfig(name="x", obs=("fs1",), action=("taskspace", "joint"), algo=("ddpg", "sac"))
+    assert exp.arms() == ["taskspace / ddpg", "taskspace / sac", "joint / ddpg", "joint / sac"]
