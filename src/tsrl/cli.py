@@ -328,7 +328,10 @@ def _parser() -> tuple[argparse.ArgumentParser, list[tuple[str, str]]]:
         "--size", type=int, nargs=2, default=(480, 480), metavar=("W", "H"), help="frame size"
     )
 
-    p_plot = commands.add_parser("plot", help="learning curves (eval success vs env steps) of run folders")
+    p_plot = commands.add_parser(
+        "plot",
+        help="learning curves (eval success vs env steps; IQM across seeds, as tsrl report) of run folders",
+    )
     p_plot.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR")
     p_plot.add_argument("--out", type=Path, default=Path("learning_curve.png"), help="PNG file")
 
@@ -368,12 +371,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise InvalidConfig(f"--size must be at least 16 16; got {args.size[0]} {args.size[1]}")
             print(f"wrote {render_run(args.run_dir, args.out, args.episodes, args.seed, tuple(args.size))}")
         elif args.command == "plot":
-            from .agents.plotting import plot_learning_curves
             from .agents.training import load_config
+            from .experiments.aggregate import plot_runs
 
             for run_dir in args.run_dirs:
                 load_config(run_dir)  # a clear error for a folder that is not a run
-            print(f"wrote {plot_learning_curves(args.run_dirs, args.out)}")
+            print(f"wrote {plot_runs(args.run_dirs, args.out)}")
         elif args.command == "demo":
             if args.poses < 0:
                 parser.error(f"--poses must be >= 0; got {args.poses}")

@@ -3,6 +3,7 @@ an error naming the bad field, the summary's statistics follow their stated rule
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 
 from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
-from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize, variants
+from tsrl.experiments.aggregate import Curve, compare, sort_key, summarize, variants
 from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
 
 REPO = Path(__file__).resolve().parents[2]
@@ -91,42 +92,67 @@ def test_unknown_name_lists_the_known_experiments(monkeypatch):
         resolve_experiment("no/such.toml")
 
 
-def test_bootstrap_interval_is_seeded_and_brackets_the_mean():
-    values = np.array([0.2, 0.5, 0.6, 0.9, 1.0])
-    mean, low, high = bootstrap_mean_ci(values)
-    assert mean == pytest.approx(0.64) and low < mean < high
-    assert 0.2 <= low and high <= 1.0
-    assert bootstrap_mean_ci(values) == (mean, low, high)  # same data, same interval
-    assert bootstrap_mean_ci(np.array([0.7]))[1:] == (0.7, 0.7)  # one seed: no spread to estimate
-    columns = bootstrap_mean_ci(np.array([[0.0, 1.0], [0.0, 1.0]]))
-    np.testing.assert_array_equal(columns[1], [0.0, 1.0])
-
-
 def _rows(seed: int, success: list[float], obs: str = "fs1") -> list[dict]:
     return [
         {"env": "tsrl/UR5eReach-v0", "obs": obs, "action": "taskspace", "algo": "ddpg", "variant": "", "seed": seed,
-         "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
+         "eval_episodes": 20, "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
         for i, s in enumerate(success)
     ]  # fmt: skip
 
 
-def test_summary_thresholds_count_reaching_seeds_and_average_over_them():
+def test_summary_censors_seeds_that_never_reach_a_threshold():
     rows = (
         _rows(0, [0.0, 0.6, 0.95, 1.0, 1.0])  # 50% at 500 steps, 90% at 1000
         + _rows(1, [0.0, 0.2, 0.55, 0.95, 0.9])  # 50% at 1000, 90% at 1500
-        + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never
+        + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never: censored at 2000
         + _rows(0, [0.0, 0.0, 0.0, 0.0, 0.0], obs="baseline")
     )
-    fs1, baseline = summarize(rows)
+    baseline, fs1 = summarize(sorted(rows, key=sort_key))  # Table I order
     assert (fs1["obs"], fs1["seeds"], fs1["final_env_steps"], fs1["final_evals"]) == ("fs1", 3, 2000, 3)
-    assert fs1["seeds_reaching_50"] == 2 and fs1["seeds_reaching_90"] == 2
-    assert fs1["env_steps_to_50_mean"] == 750 and fs1["episodes_to_90_mean"] == 25
-    assert fs1["env_steps_to_50_ci_low"] >= 500 and fs1["env_steps_to_50_ci_high"] <= 1000
+    assert (fs1["evaluations"], fs1["eval_episodes"]) == (5, "20")
+    # Kaplan-Meier, 50%: S = 2/3 at 500, 1/3 at 1000 -> 1000 (the mean over reaching seeds said 750).
+    assert fs1["seeds_reaching_50"] == 2 and fs1["env_steps_to_50_km_median"] == 1000
+    assert fs1["seeds_reaching_90"] == 2 and fs1["env_steps_to_90_km_median"] == 1500
+    assert fs1["episodes_to_90_km_median"] == 30
+    # AUC: trapezoids of 500 steps over 2000: 1525 / 2000, 1075 / 2000, 400 / 2000; IQM of 3 = mean.
+    assert fs1["auc_iqm"] == pytest.approx((0.7625 + 0.5375 + 0.2) / 3)
+    assert fs1["auc_ci_low"] <= fs1["auc_iqm"] <= fs1["auc_ci_high"]
     finals = [np.mean([0.95, 1.0, 1.0]), np.mean([0.55, 0.95, 0.9]), np.mean([0.2, 0.3, 0.4])]
-    assert fs1["final_success_mean"] == pytest.approx(np.mean(finals))
-    assert fs1["final_success_ci_low"] <= fs1["final_success_mean"] <= fs1["final_success_ci_high"]
-    assert baseline["seeds_reaching_50"] == 0 and np.isnan(baseline["env_steps_to_50_mean"])
+    assert fs1["final_success_iqm"] == pytest.approx(np.mean(finals))
+    assert baseline["seeds_reaching_50"] == 0 and baseline["env_steps_to_50_km_median"] == math.inf
     assert baseline["wall_time_s_mean"] == 20.0
+
+
+def _flat_curve(obs: str, levels: list[float]) -> Curve:
+    """Seeds whose success stays at one level: AUC and final success equal that level."""
+    steps = np.array([0, 500, 1000])
+    return Curve(
+        key=("tsrl/UR5eReach-v0", obs, "taskspace", "ddpg", ""),
+        seeds=tuple(range(len(levels))),
+        eval_episodes=(50,),
+        env_steps=steps,
+        episodes=steps / 50,
+        success=np.repeat(np.array(levels)[:, None], 3, axis=1),
+    )
+
+
+def test_comparisons_report_effect_poi_holm_power_and_verdict():
+    arms = [_flat_curve("fs1", [0.9, 0.7, 0.8]), _flat_curve("baseline", [0.1, 0.3, 0.2])]
+    registered = (
+        Comparison(a="fs1", b="baseline", metric="auc", direction="greater", min_effect=0.1),
+        Comparison(a="baseline", b="fs1", metric="final_success", direction="greater"),
+        Comparison(a="fs0", b="fs1"),  # no fs0 runs: counts in Holm's family as p = 1
+    )
+    auc, final = compare(arms, registered)
+    assert (auc["a"], auc["b"], auc["seeds_a"], auc["seeds_b"]) == ("fs1", "baseline", 3, 3)
+    assert auc["effect"] == pytest.approx(0.6) and auc["effect_ci_low"] <= 0.6 <= auc["effect_ci_high"]
+    assert auc["poi"] == 1.0
+    # All three fs1 seeds above all three baseline seeds: one of C(6, 3) = 20 orderings -> p = 0.05;
+    # Holm over three comparisons: 3 * 0.05 = 0.15. Three seeds cannot be detected at 0.05.
+    assert auc["p"] == pytest.approx(0.05) and auc["p_holm"] == pytest.approx(0.15)
+    assert auc["verdict"].startswith("no detectable difference at this power")
+    assert final["p"] == pytest.approx(1.0) and final["p_holm"] == 1.0 and final["poi"] == 0.0
+    assert auc["mde"] > 0
 
 
 def test_variants_name_only_the_settings_that_differ():

@@ -22,6 +22,9 @@ def test_iqm_is_the_mean_of_the_middle_runs():
     # Per evaluation of a curve (seeds x evaluations): each column on its own.
     curve = np.stack([TEN, TEN * 0 + 1.0], axis=1)
     assert st.iqm(curve) == pytest.approx([0.55, 1.0])
+    eleven = np.r_[TEN, 7.0]
+    for n in range(1, 12):  # rliable's aggregate_iqm for every n: int(n / 4) cut at each end
+        assert st.iqm(eleven[:n])[0] == pytest.approx(metrics.aggregate_iqm(eleven[:n]))
 
 
 def test_iqm_interval_is_rliables_stratified_percentile_bootstrap():
@@ -49,6 +52,10 @@ def test_probability_of_improvement_counts_pairs():
     # pairs (1,1) tie 0.5, (1,3) 0, (2,1) 1, (2,3) 0 -> 1.5 / 4
     poi = st.probability_of_improvement([1, 2], [1, 3], resamples=200)
     assert poi.point[0] == pytest.approx(0.375) and poi.low[0] <= 0.375 <= poi.high[0]
+    x, y = TEN.reshape(-1, 1), np.array([[0.5], [0.05], [0.95], [0.3]])
+    assert st.probability_of_improvement(x, y, resamples=10).point[0] == metrics.probability_of_improvement(
+        x, y
+    )
 
 
 def test_area_under_the_curve_is_the_normalised_trapezoid():
