@@ -105,8 +105,8 @@ def test_minimum_detectable_effect():
     assert st.minimum_detectable_effect(0.1, 1, "two-sided") == pytest.approx(0.28016, abs=1e-4)
 
 
-def _effect(point: float, low: float, high: float) -> st.Estimate:
-    return st.Estimate(np.array([point]), np.array([low]), np.array([high]), np.array([0.0]))
+def _effect(point: float, low: float, high: float, sd: float = 0.05) -> st.Estimate:
+    return st.Estimate(np.array([point]), np.array([low]), np.array([high]), np.array([sd]))
 
 
 def test_verdicts_say_what_the_data_can_decide():
@@ -122,6 +122,8 @@ def test_verdicts_say_what_the_data_can_decide():
     assert outside.endswith("an effect of 0.1 is outside the 95% interval")
     powered = st.verdict("a", "b", _effect(0.02, -0.03, 0.12), 0.3, 0.08, "greater", 0.1)
     assert powered.endswith("it had the power to detect an effect of 0.1 and did not")
+    alike = st.verdict("a", "b", _effect(0.0, 0.0, 0.0, sd=0.0), 1.0, 0.0, "greater", 0.1)
+    assert alike.endswith("scored alike, so the power cannot be estimated")
     weak = st.verdict("a", "b", _effect(0.02, -0.1, 0.2), 0.3, 0.15, "greater", 0.1)
     assert weak.endswith("too few seeds to detect an effect of 0.1: inconclusive")
 

@@ -210,6 +210,10 @@ def verdict(
     minimum detectable effect and, when the comparison states the effect that matters (`min_effect`,
     e.g. the paper's), whether the interval excludes it, whether the study could have detected it,
     or that it could not (inconclusive)."""
+    if p_holm >= ALPHA and effect.sd[0] == 0:
+        return (
+            "no detectable difference; the seeds of each arm scored alike, so the power cannot be estimated"
+        )
     if p_holm < ALPHA:
         higher = direction == "greater" or (direction == "two-sided" and effect.point[0] > 0)
         return f"detected: {a} {'above' if higher else 'below'} {b}"
