@@ -29,7 +29,8 @@ learning_starts = 100
 
 @pytest.mark.parametrize(
     ("name", "runs", "budget"),
-    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000)],
+    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000),
+     ("paper-observations-v2", 50, 6_000), ("action-ablation-v2", 20, 25_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)
@@ -38,6 +39,13 @@ def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     assert exp.name == name and len(configs) == runs
     assert len({c.run_name for c in configs}) == runs
     assert all(c.total_timesteps == budget and c.agent.algo == "ddpg" for c in configs)
+    if name.endswith("-v2"):  # the issue-16 study standard
+        assert len(exp.seeds) >= 10 and exp.eval_episodes >= 50 and exp.total_timesteps // exp.eval_freq >= 25
+        assert exp.comparisons and configs[0].agent.policy_inputs == ("observation", "desired_goal")
+        assert (configs[0].agent.her.strategy, configs[0].agent.her.n_sampled_goal) == (
+            "final",
+            1,
+        )  # the paper's HER
 
 
 def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
