@@ -3,6 +3,7 @@ an error naming the bad field, the summary's statistics follow their stated rule
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -150,14 +151,19 @@ def test_comparisons_report_effect_poi_holm_power_and_verdict():
         Comparison(a="fs1", b="baseline", metric="auc", direction="greater", min_effect=0.1),
         Comparison(a="baseline", b="fs1", metric="final_success", direction="greater"),
         Comparison(a="fs0", b="fs1"),  # no fs0 runs: counts in Holm's family as p = 1
+        Comparison(a="fs2", b="fs1"),  # fs2 has one evaluation: no AUC, not computed, p = 1 in the family
     )
-    auc, final = compare(arms, registered)
+    one_eval = _flat_curve("fs2", [0.5, 0.6, 0.7])
+    one_eval = dataclasses.replace(
+        one_eval, env_steps=one_eval.env_steps[:1], success=one_eval.success[:, :1]
+    )
+    auc, final = compare([*arms, one_eval], registered)
     assert (auc["a"], auc["b"], auc["seeds_a"], auc["seeds_b"]) == ("fs1", "baseline", 3, 3)
     assert auc["effect"] == pytest.approx(0.6) and auc["effect_ci_low"] <= 0.6 <= auc["effect_ci_high"]
     assert auc["poi"] == 1.0
     # All three fs1 seeds above all three baseline seeds: one of C(6, 3) = 20 orderings -> p = 0.05;
-    # Holm over three comparisons: 3 * 0.05 = 0.15. Three seeds cannot be detected at 0.05.
-    assert auc["p"] == pytest.approx(0.05) and auc["p_holm"] == pytest.approx(0.15)
+    # Holm over four comparisons: 4 * 0.05 = 0.2. Three seeds cannot be detected at 0.05.
+    assert auc["p"] == pytest.approx(0.05) and auc["p_holm"] == pytest.approx(0.2)
     assert auc["verdict"].startswith("no detectable difference at this power")
     assert final["p"] == pytest.approx(1.0) and final["p_holm"] == 1.0 and final["poi"] == 0.0
     assert auc["mde"] > 0

@@ -238,14 +238,20 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> list[dict[str, Any]]:
-    """One row per comparison whose two arms are both in `all_curves` (labelled by config_labels):
+    """One row per comparison whose two arms are both in `all_curves` (labelled by config_labels) with
+    a value for every seed (AUC needs two evaluations):
     effect IQM(a) - IQM(b) and P(a > b) with intervals, Mann-Whitney p on the registered side, Holm's
     adjustment over all of `comparisons`, minimum detectable effect and verdict."""
     by_label = dict(zip(config_labels([c.key for c in all_curves]), all_curves, strict=True))
-    present = [c for c in comparisons if c.a in by_label and c.b in by_label]
+    metrics = {label: curve.seed_metrics() for label, curve in by_label.items()}
+    present = [
+        c
+        for c in comparisons
+        if all(arm in metrics and not np.isnan(metrics[arm][c.metric]).any() for arm in (c.a, c.b))
+    ]
     out = []
     for c in present:
-        x, y = (by_label[arm].seed_metrics()[c.metric] for arm in (c.a, c.b))
+        x, y = metrics[c.a][c.metric], metrics[c.b][c.metric]
         effect = st.iqm_difference(x, y)
         poi = st.probability_of_improvement(x, y)
         out.append(
@@ -268,7 +274,7 @@ def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> lis
                 "_effect": effect,
             }
         )
-    # The family is every pre-registered comparison: one whose arms have no runs yet counts as p = 1.
+    # The family is every pre-registered comparison: one not computed yet counts as p = 1.
     family = st.holm([r["p"] for r in out] + [1.0] * (len(comparisons) - len(out)))
     for row, p_holm in zip(out, family, strict=False):
         min_effect = None if math.isnan(row["min_effect"]) else row["min_effect"]
