@@ -94,7 +94,7 @@ def reached(model: mujoco.MjModel, data: mujoco.MjData, case: Case) -> bool:
 def global_cases(model: mujoco.MjModel, rng: np.random.Generator, n: int) -> list[Case]:
     data = mujoco.MjData(model)
     cases = []
-    for q in random_configurations(rng, n):
+    for q in random_configurations(model, rng, n):
         forward_kinematics(model, data, q)
         cases.append(Case(HOME_Q.copy(), *tcp_pose(model, data)))
     return cases

@@ -51,7 +51,7 @@ def main() -> None:
     physics_us = best_time_us(control_period, max(args.evals // 10, 50), args.repeats)
 
     rng = np.random.default_rng(0)
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
     print(f"physics: {physics_us:.1f} us per control period ({SUBSTEPS} x mj_step, reach scene)")
     print(f"{'preset':<10}{'dim':>5}{'us/eval (y, J)':>17}{'ratio to physics':>19}")

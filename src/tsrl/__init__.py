@@ -8,8 +8,9 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from .assets import SCENES, load_model
 from .envs import ENV_IDS, register_envs
 from .exceptions import ModelLoadError, TsrlError, UnknownName, UnknownScene
-from .ik import IKResult, solve_ik
+from .ik import DlsSolver, IKOptions, IKResult
 from .kinematics import dh_forward, forward_kinematics
+from .robots import ROBOTS, Robot, load_robot
 from .taskmaps import OBS_PRESETS, TaskMap, TaskMapValue, parse_spec
 
 register_envs()
@@ -19,9 +20,13 @@ __version__ = "0.1.0"
 __all__ = (
     "ENV_IDS",
     "OBS_PRESETS",
+    "ROBOTS",
     "SCENES",
+    "DlsSolver",
+    "IKOptions",
     "IKResult",
     "ModelLoadError",
+    "Robot",
     "TaskMap",
     "TaskMapValue",
     "TsrlError",
@@ -30,6 +35,6 @@ __all__ = (
     "dh_forward",
     "forward_kinematics",
     "load_model",
+    "load_robot",
     "parse_spec",
-    "solve_ik",
 )

@@ -61,8 +61,8 @@ class InvalidConfig(TsrlError, ValueError):
 class NotRelabelable(TsrlError, ValueError):
     """A task map whose value for a translated frame cannot be computed from its old value alone."""
 
-    def __init__(self, spec: str, frame: str):
+    def __init__(self, spec: str, frame: str, reason: str):
         super().__init__(
-            f"task map {spec} cannot be recomputed from its value for a translation of frame {frame!r}; "
-            "evaluate it again with the frame moved"
+            f"task map {spec} cannot be relabelled exactly when frame {frame!r} moves: {reason}; "
+            "leave it out of the observation or add what it needs to the goal"
         )

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 import tsrl  # noqa: F401
-from tsrl.envs import ENV_IDS
+
+#: Tasks whose goal is one position (3,); pose and penalty goals: tests/envs/test_tasks.py.
+POSITION_GOAL_ENV_IDS = ("tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0")
 from tsrl.taskmaps import parse_spec
 
 PRESET_DIMS = [("baseline", 6), ("simple", 6), ("fs0", 9), ("fs1", 15), ("fs2", 23)]
@@ -41,24 +43,25 @@ def test_spec_string_observation():
     np.testing.assert_allclose(obs["observation"][:3], obs["achieved_goal"] - obs["desired_goal"])
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", POSITION_GOAL_ENV_IDS)
 @pytest.mark.parametrize(
     ("preset", "action"),
     [("fs2", "taskspace"), ("simple", "taskspace"), ("fs1", "taskspace_orient"), ("fs0", "joint")],
 )
 def test_step_evaluates_each_map_once_and_reads_goals_and_ik_values_off_it(env_id, preset, action):
     env = gym.make(env_id, obs=preset, action=action).unwrapped
-    specs = [p.spec for p in env._step_maps.parts]
+    specs = [p.spec for p in env.plan._maps.parts]
     assert len(specs) == len(set(specs))
     obs = moved_state_observation(env, seed=2)
     model, data = env.model, env.data
-    goals = parse_spec(f"{env.achieved_goal_spec}, position(target)", model)(model, data).y
+    goals = parse_spec(f"{env.task.goal.map}, position(target)", model)(model, data).y
     np.testing.assert_array_equal(obs["achieved_goal"], goals[:3])
     np.testing.assert_array_equal(obs["desired_goal"], goals[3:])
-    if env.ik_map is not None:  # the next IK starts from the ik map's own value at this state
-        expected = env.ik_map(model, data)
-        np.testing.assert_array_equal(env._ik_value.y, expected.y)
-        np.testing.assert_array_equal(env._ik_value.J, expected.J)
+    ik_map = env.action_map.ik_map
+    if ik_map is not None:  # the next IK starts from the ik map's own value at this state
+        expected = ik_map(model, data)
+        np.testing.assert_array_equal(env.plan.ik_value.y, expected.y)
+        np.testing.assert_array_equal(env.plan.ik_value.J, expected.J)
 
 
 def moved_state_observation(env, seed, steps=4):
@@ -69,7 +72,7 @@ def moved_state_observation(env, seed, steps=4):
     return obs
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", POSITION_GOAL_ENV_IDS)
 @pytest.mark.parametrize("preset", ["fs0", "fs1", "fs2", "simple"])
 def test_relabelled_observation_equals_env_observation(env_id, preset):
     env = gym.make(env_id, obs=preset).unwrapped

@@ -4,10 +4,11 @@ import gymnasium as gym
 import numpy as np
 
 import tsrl  # noqa: F401
-from tsrl.envs.pick_place import BOX_HALF_SIZE
+from tsrl.assets import load_model
 
 #: The controller observes exactly what it needs, through a task-map spec.
 SPEC = "position(tcp), position(box), position(target)"
+BOX_HALF_SIZE = float(load_model("pick_place").geom("box").size[0])
 HOVER = 0.10  # m above the box top before descending
 GRIP_DEPTH = 0.004  # m the cup target goes below the box top, to press the cup onto it
 CARRY_SPEED = 0.6  # fraction of the largest TCP step while the box hangs on the cup
@@ -54,7 +55,7 @@ class ScriptedPickPlace:
 def test_scripted_controller_solves_pick_and_place():
     env = gym.make("tsrl/UR5ePickPlace-v0", obs=SPEC)
     slices = env.unwrapped.observation_structure
-    max_step = env.unwrapped.action_config.max_tcp_step
+    max_step = env.unwrapped.task.action_spec.parts[0].step
     successes = 0
     for seed in range(100):
         obs, _ = env.reset(seed=seed)

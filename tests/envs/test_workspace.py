@@ -10,10 +10,14 @@ import mujoco
 import numpy as np
 
 from tsrl.assets.ur5e import HOME_Q
-from tsrl.envs.reach import GOAL_HALF_EXTENT, HOME_TCP
-from tsrl.ik import solve_ik
+from tsrl.envs import load_task
+from tsrl.ik import DlsSolver
 from tsrl.kinematics import forward_kinematics
 from tsrl.taskmaps import parse_spec
+
+#: The reach task's goal box: centre (the TCP at home) and half-extent.
+HOME_TCP = np.array(load_task("UR5eReach-v0").goal.position.center)
+GOAL_HALF_EXTENT = np.array(load_task("UR5eReach-v0").goal.position.half_extent)
 
 
 def test_home_tcp_constant_matches_forward_kinematics(ur5e):
@@ -25,7 +29,7 @@ def test_home_tcp_constant_matches_forward_kinematics(ur5e):
 def reach_cup_down(model, data, goal):
     task = parse_spec("position(tcp), vectorZ(tcp)", model)
     forward_kinematics(model, data, HOME_Q)
-    result = solve_ik(model, data, task, np.concatenate([goal, [0.0, 0.0, -1.0]]))
+    result = DlsSolver(model, task).solve(data, np.concatenate([goal, [0.0, 0.0, -1.0]]))
     mujoco.mj_kinematics(model, data)
     return result, data.site("tcp").xpos.copy()
 

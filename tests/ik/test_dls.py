@@ -1,4 +1,4 @@
-"""solve_ik, ik_step and dls_step on the real UR5e: known solutions, behaviour, limits, bad input."""
+"""DlsSolver on the real UR5e: the step formula, known solutions, behaviour, limits, bad input."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS
 from tsrl.exceptions import InvalidConfig, UnknownName
-from tsrl.ik import IKResult, IKStepper, dls_step, ik_step, solve_ik
-from tsrl.ik.dls import _Difference
+from tsrl.ik import DlsSolver, IKOptions, IKResult
+from tsrl.ik.dls import _dls, _Workspace
 from tsrl.kinematics import forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
 
@@ -23,7 +23,17 @@ def quaternion_angle(a: np.ndarray, b: np.ndarray) -> float:
     return float(2.0 * np.arccos(min(1.0, abs(a @ b))))
 
 
-# dls_step: the formula itself
+def solve_ik(model, data, task_map, target, *, joints=None, initial_value=None, **options) -> IKResult:
+    """A full solve with the given options (the tests' shorthand)."""
+    return DlsSolver(model, task_map, joints, IKOptions(**options)).solve(data, target, initial_value)
+
+
+def dls_step(J: np.ndarray, e: np.ndarray, damping: float, d: np.ndarray | None = None) -> np.ndarray:
+    """The solver's step formula on raw J (k, n), e (k,)."""
+    return _dls(np.ascontiguousarray(J), np.ascontiguousarray(e), damping, d, _Workspace(min(J.shape)))
+
+
+# The step formula itself
 
 
 @pytest.mark.parametrize("k", [3, 6, 7])
@@ -46,14 +56,18 @@ def test_dls_step_null_space_term_is_the_projected_posture_step(rng):
 @pytest.mark.parametrize(
     "spec", [POSE, ALIGNMENT, "fs2", "quaternion(tcp)", "quaternion(tcp), quaternion(flange)"]
 )
-def test_solver_difference_gives_the_maps_own_numbers(reach_model, spec, rng):
-    """The loop's shortcut for stacks and quaternions equals task_map.difference, sign boundary included."""
+def test_stack_difference_of_one_value_gives_the_parts_own_numbers(reach_model, spec, rng):
+    """The stack's fast path for one value equals its parts' own rules, sign boundary included."""
     task_map = parse_spec(spec, reach_model)
     pairs = [rng.normal(size=(2, task_map.dim)) for _ in range(50)]
     boundary = np.zeros((2, task_map.dim))
     boundary[0, ::4], boundary[1, 1::4] = 1.0, 1.0  # quaternion rows with a . b = 0
     for a, b in [*pairs, boundary]:
-        np.testing.assert_array_equal(_Difference(task_map)(task_map, a, b), task_map.difference(a, b))
+        expected = np.concatenate(
+            [p.difference(a[s], b[s]) for p, s in zip(task_map.parts, task_map.slices.values())]
+        )
+        np.testing.assert_array_equal(task_map.difference(a, b), expected)
+        np.testing.assert_array_equal(task_map.difference(a[None], b[None])[0], expected)  # batched
 
 
 # Known solutions
@@ -62,7 +76,7 @@ def test_solver_difference_gives_the_maps_own_numbers(reach_model, spec, rng):
 def test_recovers_known_positions(ur5e, rng):
     model, data = ur5e
     task_map = parse_spec("position(tcp)", model)
-    for q in random_configurations(rng, 10):
+    for q in random_configurations(model, rng, 10):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, task_map, target)
@@ -74,7 +88,7 @@ def test_recovers_known_positions(ur5e, rng):
 def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
     """Targets anywhere in the joint range, any IK branch: the restarts find one."""
     model, data = ur5e
-    for q in random_configurations(rng, 30):
+    for q in random_configurations(model, rng, 30):
         target = target_at(model, pose_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, pose_map, target, tol=5e-5)
@@ -86,7 +100,7 @@ def test_recovers_known_poses_from_home(ur5e, pose_map, rng):
 
 def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, rng):
     model, data = ur5e
-    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
     result = solve_ik(model, data, pose_map, target)
     np.testing.assert_array_equal(data.qpos[:6], result.q)
     np.testing.assert_allclose(pose_map(model, data).y, target_at(model, pose_map, result.q), atol=1e-12)
@@ -94,7 +108,7 @@ def test_data_holds_the_returned_configuration_with_kinematics(ur5e, pose_map, r
 
 def test_is_deterministic(ur5e, pose_map, rng):
     model, data = ur5e
-    target = target_at(model, pose_map, random_configurations(rng, 1)[0])
+    target = target_at(model, pose_map, random_configurations(model, rng, 1)[0])
     first = solve_ik(model, data, pose_map, target)
     forward_kinematics(model, data, HOME_Q)
     second = solve_ik(model, data, pose_map, target)
@@ -156,7 +170,7 @@ def test_stacked_position_and_alignment_targets_are_met(ur5e, rng):
     model, data = ur5e
     task_map = parse_spec(ALIGNMENT, model)
     assert task_map.dim == 6
-    for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(rng, 5)]):
+    for q in np.concatenate([HOME_Q + rng.uniform(-0.5, 0.5, (5, 6)), random_configurations(model, rng, 5)]):
         target = target_at(model, task_map, q)
         forward_kinematics(model, data, HOME_Q)
         result = solve_ik(model, data, task_map, target)
@@ -208,7 +222,7 @@ def test_joint_limits_hold_on_every_iterate(ur5e, rng):
     result = solve_ik(model, data, recorder, beyond, restarts=0)
     np.testing.assert_allclose(result.q, np.clip(beyond, *JOINT_LIMITS.T))
     pose = Recording(parse_spec(POSE, model))
-    for q in random_configurations(rng, 5):
+    for q in random_configurations(model, rng, 5):
         forward_kinematics(model, data, HOME_Q)
         solve_ik(model, data, pose, target_at(model, pose.inner, q))
     assert len(recorder.qpos) > 1 and len(pose.qpos) > 20
@@ -233,7 +247,7 @@ def test_free_box_in_pick_place_never_moves(pick_place_model, rng):
     data.qpos[box_qpos] = [-0.4, 0.2, 0.3, 0.9, 0.1, 0.3, 0.2]  # an odd, unnormalised pose
     before = data.qpos[box_qpos].copy()
     task_map = Recording(parse_spec(POSE, model))
-    for q in random_configurations(rng, 5):
+    for q in random_configurations(model, rng, 5):
         result = solve_ik(model, data, task_map, target_at(model, task_map.inner, q))
         assert result.converged and result.q.shape == (6,)
     np.testing.assert_array_equal(data.qpos[box_qpos], before)
@@ -277,107 +291,143 @@ def test_initial_value_at_the_target_leaves_data_alone(ur5e, pose_map):
     np.testing.assert_array_equal(data.xpos, xpos)
 
 
-def test_ik_step_is_one_paper_step_and_leaves_data_alone(ur5e, pose_map):
+def test_step_is_one_paper_step_and_writes_nothing(ur5e, pose_map):
     model, data = ur5e
+    solver = DlsSolver(model, pose_map, options=IKOptions(damping=1e-3, adaptive_damping=0.0))
     target = target_at(model, pose_map, HOME_Q + 0.05)
-    qpos = data.qpos.copy()
-    q_next = ik_step(model, data, pose_map, target, damping=1e-3, adaptive_damping=0.0)
+    qpos, value = data.qpos.copy(), pose_map(model, data)
+    y, J, q = value.y.copy(), value.J.copy(), data.qpos[:6].copy()
+    q_next, _ = solver.step(q, value, target)
     np.testing.assert_array_equal(data.qpos, qpos)
-    value = pose_map(model, data)
-    expected = HOME_Q + dls_step(value.J, pose_map.difference(target, value.y), 1e-3)
+    np.testing.assert_array_equal(q, qpos[:6])
+    np.testing.assert_array_equal(value.y, y)
+    np.testing.assert_array_equal(value.J, J)
+    expected = HOME_Q + dls_step(J, pose_map.difference(target, y), 1e-3)
     np.testing.assert_allclose(q_next, expected, atol=1e-12)
-    reused = ik_step(model, data, pose_map, target, damping=1e-3, adaptive_damping=0.0, initial_value=value)
-    np.testing.assert_array_equal(reused, q_next)
     # The step brings the pose closer, and is bounded and clipped.
-    before = np.linalg.norm(pose_map.difference(target, value.y))
+    before = np.linalg.norm(pose_map.difference(target, y))
     after = np.linalg.norm(pose_map.difference(target, target_at(model, pose_map, q_next)))
     assert after < 0.1 * before
-    far = ik_step(model, data, pose_map, target_at(model, pose_map, -HOME_Q), max_step=0.1)
+    bounded = DlsSolver(model, pose_map, options=IKOptions(max_step=0.1))
+    far, _ = bounded.step(q, value, target_at(model, pose_map, -HOME_Q))
     assert np.linalg.norm(far - HOME_Q) <= 0.1 + 1e-12
 
 
-def test_ik_stepper_repeats_ik_step_and_reports_the_linearised_residual(ur5e, pose_map):
+def test_step_reports_the_linearised_residual_and_matches_one_solve_iteration(ur5e, pose_map):
     model, data = ur5e
-    stepper = IKStepper(model, pose_map, damping=1e-3, max_step=0.2)
-    value = pose_map(model, data)
+    options = IKOptions(damping=1e-3, max_step=0.2, max_iters=1, restarts=0, tol=1e-12)
+    solver = DlsSolver(model, pose_map, options=options)
+    value, q = pose_map(model, data), data.qpos[:6].copy()
     for delta in (0.05, -0.3, 1.0):  # small, clipped by max_step, and far
         target = target_at(model, pose_map, HOME_Q + delta)
-        q_next, residual = stepper(data, target, value)
-        np.testing.assert_array_equal(
-            q_next, ik_step(model, data, pose_map, target, damping=1e-3, max_step=0.2)
-        )
+        q_next, residual = solver.step(q, value, target)
         predicted = pose_map.difference(target, value.y) - value.J @ (q_next - HOME_Q)
         assert residual == pytest.approx(np.linalg.norm(predicted), rel=1e-12, abs=1e-15)
+        scratch = mujoco.MjData(model)
+        scratch.qpos[:] = data.qpos
+        result = solver.solve(scratch, target, value)  # one iteration from the same value
+        np.testing.assert_array_equal(result.q, q_next)
 
 
-def test_ik_stepper_step_from_is_the_call_without_its_checks(ur5e, pose_map):
+def test_step_gives_the_clipped_start_for_a_non_finite_step(ur5e, pose_map):
     model, data = ur5e
-    stepper = IKStepper(model, pose_map, damping=1e-3, max_step=0.2)
+    solver = DlsSolver(model, pose_map)
     value = pose_map(model, data)
     q = data.qpos[:6].copy()
-    for delta in (0.05, -0.3, 1.0):
-        target = target_at(model, pose_map, HOME_Q + delta)
-        q_next, residual = stepper.step_from(q, value, target)
-        expected_q, expected_residual = stepper(data, target, value)
-        np.testing.assert_array_equal(q_next, expected_q)
-        assert residual == expected_residual
-        np.testing.assert_array_equal(q, data.qpos[:6])  # q is not written
+    q[0] = 9.0  # outside the limits
+    q_next, _ = solver.step(q, value, np.full(7, np.nan))
+    np.testing.assert_array_equal(q_next, np.clip(q, *JOINT_LIMITS.T))
 
 
 # Bad input
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "match"),
+    ("options", "match"),
     [
-        ({"target": np.zeros(3)}, r"target has shape \(3,\); expected \(7,\)"),
-        ({"target": np.full(7, np.nan)}, "target must be finite"),
         ({"tol": 0.0}, "tol must be > 0; got 0.0"),
         ({"tol": float("nan")}, "tol must be > 0; got nan"),
         ({"max_iters": 0}, "max_iters must be an integer >= 1; got 0"),
         ({"max_iters": 2.5}, "max_iters must be an integer >= 1; got 2.5"),
         ({"restarts": -1}, "restarts must be an integer >= 0; got -1"),
+        ({"seed": True}, "seed must be an integer >= 0; got True"),
         ({"damping": -1e-3}, "damping must be > 0; got -0.001"),
         ({"adaptive_damping": -1.0}, "adaptive_damping must be >= 0; got -1.0"),
         ({"max_step": 0}, "max_step must be > 0; got 0"),
         ({"max_step": "big"}, "max_step must be a number; got 'big'"),
-        ({"weights": np.ones(3)}, r"weights has shape \(3,\); expected \(7,\)"),
         ({"weights": -np.ones(7)}, "weights must be >= 0"),
-        ({"posture": np.zeros(7)}, r"posture has shape \(7,\); expected \(6,\)"),
+        ({"weights": np.ones((2, 2))}, r"weights has shape \(2, 2\); expected a 1-D sequence"),
+        ({"posture": [0.0, np.inf]}, "posture must be finite"),
         ({"posture_gain": -0.1}, "posture_gain must be >= 0; got -0.1"),
-        ({"joints": ("box",)}, "unknown joint 'box'"),
-        ({"joints": ("elbow", "elbow")}, "joints must be distinct joint names"),
+        ({"posture_gain": [0.1, -0.1]}, "posture_gain must be >= 0"),
     ],
 )
-def test_bad_input_raises_a_clear_error(ur5e, pose_map, kwargs, match):
-    model, data = ur5e
-    kwargs = {"target": target_at(model, pose_map, HOME_Q), **kwargs}
-    error = UnknownName if "joints" in kwargs and "box" in kwargs["joints"] else InvalidConfig
-    with pytest.raises(error, match=match):
-        solve_ik(model, data, pose_map, **kwargs)
+def test_bad_options_raise_a_clear_error_when_built(options, match):
+    with pytest.raises(InvalidConfig, match=match):
+        IKOptions(**options)
 
 
-def test_unknown_option_is_named(ur5e, pose_map):
+def test_options_are_frozen_and_normalised():
+    options = IKOptions(weights=np.ones(3), posture_gain=np.array([0.1, 0.2]), max_step=1)
+    assert options.weights == (1.0, 1.0, 1.0) and options.posture_gain == (0.1, 0.2)
+    assert isinstance(options.max_step, float)
+    with pytest.raises(AttributeError):
+        options.tol = 1.0  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"options": IKOptions(weights=np.ones(3))}, r"weights has shape \(3,\); expected \(7,\)"),
+        ({"options": IKOptions(posture=np.zeros(7))}, r"posture has shape \(7,\); expected \(6,\)"),
+        ({"options": IKOptions(posture_gain=np.ones(2))}, r"posture_gain has shape \(2,\); expected \(6,\)"),
+        ({"joints": ("elbow", "elbow")}, "joints must be distinct joint names"),
+        ({"joints": "elbow"}, "joints must be a sequence of joint names"),
+    ],
+)
+def test_bad_solver_setup_raises_a_clear_error(ur5e, pose_map, kwargs, match):
+    model, _ = ur5e
+    with pytest.raises(InvalidConfig, match=match):
+        DlsSolver(model, pose_map, **kwargs)
+
+
+def test_unknown_joint_lists_the_models_joints(ur5e, pose_map):
+    model, _ = ur5e
+    with pytest.raises(UnknownName, match="unknown joint 'box'; the model's joints: elbow, shoulder_lift"):
+        DlsSolver(model, pose_map, ("box",))
+
+
+@pytest.mark.parametrize(
+    ("target", "match"),
+    [
+        (np.zeros(3), r"target has shape \(3,\); expected \(7,\)"),
+        (np.full(7, np.nan), "target must be finite"),
+    ],
+)
+def test_bad_target_raises_a_clear_error(ur5e, pose_map, target, match):
     model, data = ur5e
+    with pytest.raises(InvalidConfig, match=match):
+        DlsSolver(model, pose_map).solve(data, target)
+
+
+def test_unknown_option_is_named():
     with pytest.raises(TypeError, match="tolerance"):
-        solve_ik(model, data, pose_map, target_at(model, pose_map, HOME_Q), tolerance=1e-3)
+        IKOptions(tolerance=1e-3)  # type: ignore[call-arg]
 
 
 def test_a_free_joint_cannot_be_moved(pick_place_model):
-    data = mujoco.MjData(pick_place_model)
     task_map = parse_spec("position(tcp)", pick_place_model)
-    with pytest.raises(InvalidConfig, match="joint 'box' is not a hinge or slide joint"):
-        solve_ik(pick_place_model, data, task_map, np.zeros(3), joints=("box",))
+    with pytest.raises(InvalidConfig, match="joint 'box' is a free joint, not a hinge or slide joint"):
+        DlsSolver(pick_place_model, task_map, ("box",))
 
 
 def test_bad_initial_value_and_state_are_rejected(ur5e, pose_map):
     model, data = ur5e
     target = target_at(model, pose_map, HOME_Q)
     value = parse_spec("position(tcp)", model)(model, data)
+    solver = DlsSolver(model, pose_map)
     with pytest.raises(InvalidConfig, match=r"initial_value has y \(3,\)"):
-        solve_ik(model, data, pose_map, target + 0.1, initial_value=value)
+        solver.solve(data, target + 0.1, value)
     data.qpos[2] = np.nan
     with pytest.raises(InvalidConfig, match="non-finite joint positions"):
-        solve_ik(model, data, pose_map, target)
-    with pytest.raises(InvalidConfig, match="non-finite joint positions"):
-        ik_step(model, data, pose_map, target)
+        solver.solve(data, target)

@@ -9,7 +9,7 @@ from tsrl.kinematics import dh_forward, dh_transform, forward_kinematics, random
 
 def test_flange_pose_equals_dh_at_random_configurations(ur5e, rng):
     model, data = ur5e
-    for q in random_configurations(rng, 200):
+    for q in random_configurations(model, rng, 200):
         forward_kinematics(model, data, q)
         T_wf = site_pose(model, data, "flange")
         T_dh = dh_forward(UR5E_DH, q)
@@ -19,7 +19,7 @@ def test_flange_pose_equals_dh_at_random_configurations(ur5e, rng):
 
 def test_tcp_is_on_the_flange_z_axis(ur5e, rng):
     model, data = ur5e
-    for q in random_configurations(rng, 20):
+    for q in random_configurations(model, rng, 20):
         forward_kinematics(model, data, q)
         T_dh = dh_forward(UR5E_DH, q)
         expected = T_dh[:3, 3] + TCP_OFFSET * T_dh[:3, 2]

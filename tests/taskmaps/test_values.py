@@ -29,7 +29,7 @@ def test_positions_and_axes_match_dh(ur5e, rng):
         model,
     )
     s = stack.slices
-    for q in random_configurations(rng, 20):
+    for q in random_configurations(model, rng, 20):
         forward_kinematics(model, data, q)
         y = stack(model, data).y
         T = dh_forward(UR5E_DH, q)  # flange = DH frame 6; tcp = flange + 0.07 z, same orientation
@@ -44,7 +44,7 @@ def test_scalar_products_are_dot_products_of_dh_axes(ur5e, rng):
     model, data = ur5e
     specs = [f"scalarProduct{a}{b}(upper_arm_link, tcp)" for a in "XYZ" for b in "XYZ"]
     stack = parse_spec(", ".join(specs), model)
-    for q in random_configurations(rng, 10):
+    for q in random_configurations(model, rng, 10):
         forward_kinematics(model, data, q)
         # upper_arm_link is DH frame 1 turned by joint 2: the orientation of DH frame 2 (alpha_2 = 0).
         R_f = dh_forward(UR5E_DH[:2], q[:2])[:3, :3]
@@ -55,7 +55,7 @@ def test_scalar_products_are_dot_products_of_dh_axes(ur5e, rng):
 def test_world_frame_is_the_identity_with_zero_jacobian(ur5e, rng):
     model, data = ur5e
     stack = parse_spec("position(world), quaternion(world), vectorZ(world), positionRel(tcp, world)", model)
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     y, J = stack(model, data)
     np.testing.assert_array_equal(y[:10], [0, 0, 0, 1, 0, 0, 0, 0, 0, 1])
     np.testing.assert_array_equal(J[:10], 0.0)
@@ -71,7 +71,7 @@ def test_cup_points_down_at_home(ur5e):
 def test_quaternion_matches_dh_rotation_up_to_sign(ur5e, rng):
     model, data = ur5e
     stack = parse_spec("quaternion(flange), quaternion(tcp)", model)
-    for q in random_configurations(rng, 20):
+    for q in random_configurations(model, rng, 20):
         forward_kinematics(model, data, q)
         y = stack(model, data).y
         expected = _mat2quat(dh_forward(UR5E_DH, q)[:3, :3])
@@ -84,7 +84,7 @@ def test_quaternion_matches_dh_rotation_up_to_sign(ur5e, rng):
 def test_quaternion_is_continuous_along_a_full_joint_sweep(joint, ur5e, rng):
     model, data = ur5e
     quaternion = parse_spec("quaternion(tcp)", model)
-    q = random_configurations(rng, 1)[0]
+    q = random_configurations(model, rng, 1)[0]
     angles = np.linspace(*JOINT_LIMITS[joint], 721)
     ys, rederived = [], []
     for angle in angles:
@@ -111,7 +111,7 @@ def test_quaternion_diff_follows_rai_sign_rule(ur5e, rng):
     stack = parse_spec(
         "quaternion(tcp), quaternion(upper_arm_link), quaternionDiff(tcp, upper_arm_link)", model
     )
-    for q in random_configurations(rng, 10):
+    for q in random_configurations(model, rng, 10):
         forward_kinematics(model, data, q)
         y = stack(model, data).y
         q_f, q_g = y[:4], y[4:8]
@@ -155,7 +155,7 @@ def test_accumulated_collisions_is_the_penetration_depth(ur5e, pressed_q):
 def test_joint_state_and_limits(ur5e, rng):
     model, data = ur5e
     stack = parse_spec("jointState, jointLimits", model)
-    for q in random_configurations(rng, 10):
+    for q in random_configurations(model, rng, 10):
         forward_kinematics(model, data, q)
         y = stack(model, data).y
         np.testing.assert_allclose(y[:6], q)
@@ -185,7 +185,7 @@ def test_returned_arrays_are_fresh(ur5e, rng):
     stack = parse_spec("fs2", model)
     first = stack(model, data)
     kept = first.y.copy(), first.J.copy()
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     stack(model, data)
     np.testing.assert_array_equal(first.y, kept[0])
     np.testing.assert_array_equal(first.J, kept[1])
@@ -194,14 +194,14 @@ def test_returned_arrays_are_fresh(ur5e, rng):
 def test_static_frames_have_zero_jacobian(ur5e, rng):
     model, data = ur5e
     stack = parse_spec("position(target), quaternion(target), position(world), vectorZ(base)", model)
-    forward_kinematics(model, data, random_configurations(rng, 1)[0])
+    forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
     np.testing.assert_array_equal(stack(model, data).J, 0.0)
 
 
 def test_one_map_on_two_data_objects(reach_model, rng):
     stack = parse_spec("fs2, positionRel(tcp, upper_arm_link)", reach_model)
     datas = [mujoco.MjData(reach_model) for _ in range(2)]
-    for data, q in zip(datas, random_configurations(rng, 2)):
+    for data, q in zip(datas, random_configurations(reach_model, rng, 2)):
         forward_kinematics(reach_model, data, q)
     expected = [parse_spec(stack.spec, reach_model)(reach_model, d).y for d in datas]  # fresh maps
     for _ in range(2):  # alternate: the cache re-binds to whichever data it is given

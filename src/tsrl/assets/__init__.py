@@ -1,4 +1,4 @@
-"""Package data: our UR5e MJCF and the scenes built on it; `load_model` compiles them."""
+"""Package data: our UR5e and Panda MJCF and the scenes built on them; `load_model` compiles them."""
 
 from __future__ import annotations
 
@@ -14,6 +14,10 @@ SCENES: dict[str, str] = {
     "ur5e": "ur5e/ur5e.xml",
     "reach": "scenes/reach.xml",
     "pick_place": "scenes/pick_place.xml",
+    "obstacle_reach": "scenes/obstacle_reach.xml",
+    "panda": "panda/panda.xml",
+    "panda_reach": "scenes/panda_reach.xml",
+    "panda_pick_place": "scenes/panda_pick_place.xml",
 }
 
 
@@ -25,7 +29,7 @@ def scene_path(name: str) -> Path:
 
 
 def load_model(name: str | Path) -> mujoco.MjModel:
-    """Compiles a built-in scene (`reach`, `pick_place`, `ur5e`) or an MJCF file given by path.
+    """Compiles a built-in scene (a key of SCENES, e.g. `reach`, `panda_reach`) or an MJCF file by path.
 
     Raises:
         UnknownScene: `name` is not a built-in scene and no such .xml file exists.

@@ -1,7 +1,23 @@
-"""Gymnasium goal environments: UR5e reach and pick-and-place with task-space observations and actions."""
+"""Gymnasium goal environments built from tasks (TOML files): task-space observations, actions and goals."""
 
-from .actions import ACTION_MODES, ActionConfig
-from .base import TsrlGoalEnv, checked_action
-from .registration import ENV_IDS, register_envs
+from .actions import ACTION_MODES, ACTION_PRESETS, ActionMap, ActionPart, ActionSpec, HeldPart
+from .base import TaskEnv, checked_action
+from .registration import ENV_IDS, TASK_ENV_ID, register_envs
+from .tasks import BUILTIN_TASKS, Task, load_task
 
-__all__ = ("ACTION_MODES", "ENV_IDS", "ActionConfig", "TsrlGoalEnv", "checked_action", "register_envs")
+__all__ = (
+    "ACTION_MODES",
+    "ACTION_PRESETS",
+    "BUILTIN_TASKS",
+    "ENV_IDS",
+    "TASK_ENV_ID",
+    "ActionMap",
+    "ActionPart",
+    "ActionSpec",
+    "HeldPart",
+    "Task",
+    "TaskEnv",
+    "checked_action",
+    "load_task",
+    "register_envs",
+)

@@ -1,46 +1,183 @@
-"""Action modes: how an agent's action in [-1, 1]^k becomes joint targets (through IK or directly)."""
+"""Action maps: how an agent's action a in [-1, 1]^k becomes joint targets, through the IK or directly.
+
+An `ActionSpec` is data (part of a task): the task maps whose target values the agent sets, each
+with its scaling, the maps the IK holds at fixed values, and an optional suction dimension. No
+parts means joint actions (the end-to-end baseline, no IK). `ActionMap` is its run-time form for
+one model: the IK map (parts, then held maps), the target layout, and `ik_target(a, y)`.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-#: Accepted action modes and what they mean.
-ACTION_MODES: dict[str, str] = {
-    "taskspace": "TCP position step (3), cup held pointing down by the IK",
-    "taskspace_orient": "TCP position step (3) + target scalar products x.x, y.y, z.z of world and TCP axes (3)",
-    "joint": "joint target steps (6), no IK (the end-to-end baseline)",
-}
+import mujoco
+import numpy as np
+
+from ..exceptions import InvalidConfig
+from ..taskmaps import Stack, TaskMap, Velocity, parse_spec
+
+#: Bounds [m] of TCP position targets in the built-in scenes: above the table and within reach.
+WORKSPACE_LOW = (-0.9, -0.55, 0.02)
+WORKSPACE_HIGH = (-0.15, 0.3, 0.7)
 
 
 @dataclass(frozen=True)
-class ActionConfig:
-    """Scales of an action mode.
+class ActionPart:
+    """One task map whose target value the agent sets.
 
     Attributes:
-        mode: one of ACTION_MODES.
-        max_tcp_step: metres the TCP target moves per step at |a| = 1 (taskspace modes).
-        max_joint_step: radians a joint target moves per step at |a| = 1 (joint mode); the default
-            is the UR5e's 180 deg/s over one 40 ms control period.
+        map: one task map spec, e.g. "position(tcp)".
+        step: relative scaling: target = current value + step * a (map units per action unit,
+            e.g. 0.05 m for a position).
+        center, half_range: absolute scaling: target = center + half_range * a (one entry per row
+            of the map). Give either `step` or both of these.
+        low, high: bounds the target is clipped to (e.g. the workspace), or empty.
+    """
+
+    map: str
+    step: float | None = None
+    center: tuple[float, ...] = ()
+    half_range: tuple[float, ...] = ()
+    low: tuple[float, ...] = ()
+    high: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class HeldPart:
+    """A task map the IK holds at a fixed value, e.g. vectorZ(tcp) = (0, 0, -1): the cup points down."""
+
+    map: str
+    value: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class ActionSpec:
+    """The action of a task: IK parts and held maps, or joint steps (no parts), plus optional suction.
+
+    Attributes:
+        parts: maps the agent sets, in action order; empty for joint actions.
+        hold: maps the IK holds at fixed values.
+        joint_step: radians a joint target moves per step at |a| = 1 (joint actions); the default is
+            180 deg/s over one 40 ms control period.
         suction: whether a last action dimension commands the suction cup (on above 0).
     """
 
-    mode: str = "taskspace"
-    max_tcp_step: float = 0.05
-    max_joint_step: float = 0.04 * 3.141592653589793
+    parts: tuple[ActionPart, ...] = ()
+    hold: tuple[HeldPart, ...] = ()
+    joint_step: float = 0.04 * math.pi
     suction: bool = False
 
     @property
-    def dim(self) -> int:
-        base = {"taskspace": 3, "taskspace_orient": 6, "joint": 6}[self.mode]
-        return base + int(self.suction)
+    def uses_ik(self) -> bool:
+        return bool(self.parts)
 
-    @property
-    def ik_spec(self) -> str | None:
-        """Task maps whose target values the IK meets, or None for joint actions."""
-        if self.mode == "taskspace":
-            # The cup points down: TCP z axis = -world z (equivalently scalarProductZZ(world, tcp) = -1,
-            # but the axis form has a full-rank Jacobian at the target, so the IK converges fast).
-            return "position(tcp), vectorZ(tcp)"
-        if self.mode == "taskspace_orient":
-            return "position(tcp), scalarProductXX(world, tcp), scalarProductYY(world, tcp), scalarProductZZ(world, tcp)"
-        return None
+
+_POSITION = ActionPart("position(tcp)", step=0.05, low=WORKSPACE_LOW, high=WORKSPACE_HIGH)
+
+#: Built-in action modes (a task's `action` may name one; the env's `action` argument overrides it).
+ACTION_PRESETS: dict[str, ActionSpec] = {
+    # The cup points down: TCP z axis = -world z (equivalently scalarProductZZ(world, tcp) = -1, but
+    # the axis form has a full-rank Jacobian at the target, so the IK converges fast).
+    "taskspace": ActionSpec(parts=(_POSITION,), hold=(HeldPart("vectorZ(tcp)", (0.0, 0.0, -1.0)),)),
+    # The paper's action set: TCP position plus target values of the scalar products x.x, y.y, z.z.
+    "taskspace_orient": ActionSpec(
+        parts=(
+            _POSITION,
+            *(
+                ActionPart(f"scalarProduct{a}{a}(world, tcp)", center=(0.0,), half_range=(1.0,))
+                for a in "XYZ"
+            ),
+        )
+    ),
+    "joint": ActionSpec(),
+}
+#: What each built-in mode means (for help texts and errors).
+ACTION_MODES: dict[str, str] = {
+    "taskspace": "TCP position step (3), cup held pointing down by the IK",
+    "taskspace_orient": "TCP position step (3) + target scalar products x.x, y.y, z.z of world and TCP axes (3)",
+    "joint": "joint target steps (one per arm joint), no IK (the end-to-end baseline)",
+}
+
+
+class ActionMap:
+    """An ActionSpec bound to a model: the IK map and how an action sets its target.
+
+    `ik_map` stacks the parts, then the held maps; `ik_target(a, y)` writes the target of the IK
+    map for action a given the IK map's current value y, into one buffer it returns each time.
+    """
+
+    def __init__(self, spec: ActionSpec, model: mujoco.MjModel, n_joints: int):
+        self.spec = spec
+        self.ik_map: Stack | None = None
+        self.dim = n_joints + int(spec.suction)
+        if not spec.uses_ik:
+            return
+        maps = [_one_map(p.map, model) for p in spec.parts] + [_one_map(h.map, model) for h in spec.hold]
+        specs = [m.spec for m in maps]
+        repeated = sorted({s for s in specs if specs.count(s) > 1})
+        if repeated:
+            raise InvalidConfig(f"action map {repeated[0]} is given twice; each map may be set or held once")
+        self.ik_map = Stack(maps)
+        self.target = np.zeros(self.ik_map.dim)
+        # (action columns, target rows, step or None, center, half range, (low, high) or None) per part
+        self._parts: list[tuple[slice, slice, float | None, np.ndarray, np.ndarray, tuple | None]] = []
+        col = 0
+        for part, m, rows in zip(spec.parts, maps, self.ik_map.slices.values()):
+            _check_part(part, m.dim)
+            cols = slice(col, col + m.dim)
+            col += m.dim
+            bounds = None
+            if part.low or part.high:
+                bounds = (np.array(part.low or [-np.inf] * m.dim), np.array(part.high or [np.inf] * m.dim))
+            self._parts.append(
+                (cols, rows, part.step, np.array(part.center), np.array(part.half_range), bounds)
+            )
+        held_rows = list(self.ik_map.slices.values())[len(spec.parts) :]
+        for held, m, rows in zip(spec.hold, maps[len(spec.parts) :], held_rows):
+            if len(held.value) != m.dim or not all(math.isfinite(v) for v in held.value):
+                raise InvalidConfig(
+                    f"held value of {m.spec} must be {m.dim} finite numbers; got {list(held.value)}"
+                )
+            self.target[rows] = held.value
+        self.dim = col + int(spec.suction)
+
+    def ik_target(self, a: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The IK map's target (dim,) for action a (k,) at the IK map's current value y (dim,)."""
+        target = self.target
+        for cols, rows, step, center, half_range, bounds in self._parts:
+            t = target[rows]
+            if step is not None:  # relative: y + step * a, within the bounds
+                np.multiply(a[cols], step, out=t)
+                np.add(y[rows], t, out=t)
+            else:  # absolute: center + half_range * a
+                np.multiply(a[cols], half_range, out=t)
+                np.add(t, center, out=t)
+            if bounds is not None:
+                np.minimum(np.maximum(t, bounds[0], out=t), bounds[1], out=t)
+        return target
+
+
+def _one_map(spec: str, model: mujoco.MjModel) -> TaskMap:
+    stack = parse_spec(spec, model)
+    if len(stack.parts) != 1 or isinstance(stack.parts[0], Velocity):
+        raise InvalidConfig(f"an action part must be one position-level task map; got {spec!r}")
+    return stack.parts[0]
+
+
+def _check_part(part: ActionPart, dim: int) -> None:
+    name = part.map
+    if part.step is not None:
+        if part.center or part.half_range:
+            raise InvalidConfig(f"action part {name}: give either step or center and half_range, not both")
+        if not (math.isfinite(part.step) and part.step > 0):
+            raise InvalidConfig(f"action part {name}: step must be > 0; got {part.step}")
+    elif len(part.center) != dim or len(part.half_range) != dim:
+        raise InvalidConfig(
+            f"action part {name}: give step, or center and half_range with {dim} entries each "
+            f"(got {len(part.center)} and {len(part.half_range)})"
+        )
+    for key in ("low", "high"):
+        bound = getattr(part, key)
+        if bound and len(bound) != dim:
+            raise InvalidConfig(f"action part {name}: {key} needs {dim} entries; got {len(bound)}")

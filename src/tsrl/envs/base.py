@@ -1,13 +1,16 @@
-"""TsrlGoalEnv: the goal-conditioned MuJoCo environment shared by the UR5e reach and pick-and-place tasks.
+"""TaskEnv: the one goal-conditioned MuJoCo environment that builds any task (envs/tasks.py).
 
-One step: action -> desired task-map values -> IK -> servo targets -> physics substeps -> the task maps
-evaluated once, their values and Jacobians reused for observation, reward and the next step's IK.
+One step (the Gymnasium-Robotics skeleton): check the action, the action map sets the IK target,
+IK -> servo targets, physics substeps, the task maps evaluated once (their values and Jacobians
+reused for observation, goals, reward and the next step's IK), `compute_reward`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
+from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -17,16 +20,17 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 from numpy.typing import ArrayLike
 
-from ..assets import load_model
-from ..assets.ur5e import HOME_KEY, JOINT_LIMITS, JOINT_NAMES, SUCTION_ACTUATOR, TARGET_BODY, TARGET_SITE
+from ..assets.ur5e import HOME_KEY, JOINT_NAMES, SUCTION_ACTUATOR
 from ..exceptions import InvalidAction, InvalidConfig
-from ..ik import IKStepper, solve_ik
+from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_qpos_indices, as_slice, name_to_id
-from ..taskmaps import OBS_PRESETS, Stack, TaskMapValue, parse_spec
-from .actions import ACTION_MODES, ActionConfig
-
-#: Target of vectorZ(tcp) in `taskspace` mode: the suction cup points down.
-_CUP_DOWN = np.array([0.0, 0.0, -1.0])
+from ..taskmaps import OBS_PRESETS, Stack
+from ..taskmaps.relabel import relabelled
+from .actions import ACTION_PRESETS, ActionMap
+from .observations import StepPlan
+from .randomization import Randomizer
+from .scenes import load_scene
+from .tasks import Task, load_task
 
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
 _BADQACC, _BADQVEL, _BADQPOS = (
@@ -57,124 +61,129 @@ def _checked_action(
     return np.minimum(np.maximum(a, low), high)
 
 
-class TsrlGoalEnv(gym.Env, EzPickle):
-    """Base class; subclasses set the scene, the achieved-goal map and the randomisation."""
+class TaskEnv(gym.Env, EzPickle):
+    """A goal environment built from a task (a built-in name, a TOML file or a Task); docs/tasks.md.
+
+    Args:
+        task: "UR5eReach-v0", ... (envs.tasks.BUILTIN_TASKS), a TOML file path, or a Task.
+        obs: overrides the task's observation (a preset or task-map spec).
+        action: overrides the task's action with a built-in mode (ACTION_PRESETS); the task's
+            suction dimension is kept.
+        success_radius: overrides the task's position tolerance [m].
+        ik_iterations: 1 = the paper's single linearised IK step per control step; more = a local
+            iterative solve.
+        render_mode: None, "rgb_array" or "human"; width, height: rgb_array image size.
+    """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
 
-    #: Built-in scene (tsrl.assets.SCENES).
-    scene: str
-    #: Task map whose value is the achieved goal (3,).
-    achieved_goal_spec: str
-    #: Whether the action has a suction dimension.
-    has_suction: bool = False
-    #: Control period [s] (25 Hz) and number of 2 ms physics substeps per control period.
-    control_dt: float = 0.04
-    #: Bounds [m] of the TCP position target: above the table and within reach.
-    workspace_low = np.array([-0.9, -0.55, 0.02])
-    workspace_high = np.array([-0.15, 0.3, 0.7])
-
     def __init__(
         self,
-        obs: str = "baseline",
-        action: str = "taskspace",
+        task: Task | str | Path = "UR5eReach-v0",
+        obs: str | None = None,
+        action: str | None = None,
         render_mode: str | None = None,
-        success_radius: float = 0.05,
+        success_radius: float | None = None,
         ik_iterations: int = 1,
         width: int = 480,
         height: int = 480,
     ):
-        EzPickle.__init__(self, obs, action, render_mode, success_radius, ik_iterations, width, height)
-        if action not in ACTION_MODES:
-            raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_MODES)}")
+        EzPickle.__init__(self, task, obs, action, render_mode, success_radius, ik_iterations, width, height)
+        task = load_task(task)
+        if action is not None and action not in ACTION_PRESETS:
+            raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_PRESETS)}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InvalidConfig(
                 f"unknown render_mode {render_mode!r}; accepted: None, {', '.join(self.metadata['render_modes'])}"
             )
-        if not success_radius > 0:
+        if success_radius is not None and not success_radius > 0:
             raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
         if ik_iterations < 1:
             raise InvalidConfig(f"ik_iterations must be >= 1; got {ik_iterations}")
-        self.obs_spec = OBS_PRESETS.get(obs, obs)
-        self.action_config = ActionConfig(mode=action, suction=self.has_suction)
-        self.success_radius = success_radius
+        overrides: dict[str, Any] = {}
+        if obs is not None:
+            overrides["observation"] = obs
+        if action is not None:
+            overrides["action"] = dataclasses.replace(
+                ACTION_PRESETS[action], suction=task.action_spec.suction
+            )
+        if success_radius is not None:
+            overrides["success"] = dataclasses.replace(task.success, position=success_radius)
+        self.task: Task = dataclasses.replace(task, **overrides) if overrides else task
+        task = self.task
+        self.obs_spec = OBS_PRESETS.get(task.observation, task.observation)
         self.ik_iterations = ik_iterations
         self.render_mode = render_mode
         self._render_size = (width, height)
 
-        self.model = load_model(self.scene)
+        self.model = load_scene(task)
         self.data = mujoco.MjData(self.model)
         self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
-        self.n_substeps = round(self.control_dt / self.model.opt.timestep)
+        self.n_substeps = round(task.control_dt / self.model.opt.timestep)
+        if self.n_substeps < 1 or not math.isclose(
+            self.n_substeps * self.model.opt.timestep, task.control_dt
+        ):
+            raise InvalidConfig(
+                f"control_dt {task.control_dt} s is not a multiple of the scene's timestep {self.model.opt.timestep} s"
+            )
         self._arm_qpos = as_slice(arm_qpos_indices(self.model))
         self._arm_ctrl = as_slice([name_to_id(self.model, "actuator", n) for n in JOINT_NAMES])
+        self._joint_range = self.model.jnt_range[[name_to_id(self.model, "joint", n) for n in JOINT_NAMES]]
+        self.action_map = ActionMap(task.action_spec, self.model, len(JOINT_NAMES))
         self._suction_ctrl = (
-            name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if self.has_suction else None
+            name_to_id(self.model, "actuator", SUCTION_ACTUATOR) if task.action_spec.suction else None
         )
-        self._target_mocap = self.model.body_mocapid[name_to_id(self.model, "body", TARGET_BODY)]
         self._home_key = name_to_id(self.model, "key", HOME_KEY)
-
-        self.obs_map = parse_spec(self.obs_spec, self.model)
-        ik_spec = self.action_config.ik_spec
-        self.ik_map = parse_spec(ik_spec, self.model) if ik_spec else None
-        self._ik_step = IKStepper(self.model, self.ik_map) if ik_spec else None
-        # Every map a step needs, in one stack evaluated once per step: the observation's maps, then
-        # those of the IK and the goals that the observation lacks (a map already there is read there).
-        achieved, desired = parse_spec(
-            f"{self.achieved_goal_spec}, position({TARGET_SITE})", self.model
-        ).parts
-        step_parts = list(self.obs_map.parts)
-        for part in (*(self.ik_map.parts if self.ik_map else ()), achieved, desired):
-            if all(part.spec != p.spec for p in step_parts):
-                step_parts.append(part)
-        self._step_maps = Stack(step_parts)
-        rows = self._step_maps.slices  # a spec's first occurrence is keyed by the spec itself
-        self._achieved_rows, self._desired_rows = rows[achieved.spec], rows[desired.spec]
-        # The IK map's rows: a slice where they follow one another in the stack, else gathered each step.
-        self._ik_rows: slice | np.ndarray | None = None
-        if self.ik_map is not None:
-            self._ik_rows = as_slice(
-                [i for p in self.ik_map.parts for i in range(rows[p.spec].start, rows[p.spec].stop)]
-            )
-        # Set by _evaluate: the stack's output buffers and views of their rows (observation, achieved
-        # and desired goal; the IK map's value, or buffers it is gathered into).
-        self._value: TaskMapValue | None = None
-        self._views: tuple[np.ndarray, np.ndarray, np.ndarray] = ()
-        self._ik_value: TaskMapValue | None = None
-        # The IK's target, rewritten each step; in taskspace mode only its position part changes.
-        self._ik_target = np.zeros(self.ik_map.dim) if ik_spec else None
-        if self.action_config.mode == "taskspace":
-            self._ik_target[3:] = _CUP_DOWN
+        self.plan = StepPlan(self.model, self.obs_spec, task, self.action_map.ik_map)
+        self.randomizer = Randomizer(self.model, task)
+        # One solver: a single step per period, or a local solve (no restarts) of ik_iterations steps.
+        ik_map, ik_options = self.action_map.ik_map, IKOptions(max_iters=ik_iterations, restarts=0)
+        self._ik = DlsSolver(self.model, ik_map, JOINT_NAMES, ik_options) if ik_map else None
         # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
+        self._steps = 0
+        self._success_value, self._failure_value = (1.0, 0.0) if task.success.reward == "0/1" else (0.0, -1.0)
 
+        goal_dim = self.plan.goal_dim
         self.observation_space = spaces.Dict(
             {
-                "observation": spaces.Box(-np.inf, np.inf, (self.obs_map.dim,), np.float64),
-                "achieved_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
-                "desired_goal": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+                "observation": spaces.Box(-np.inf, np.inf, (self.plan.obs_map.dim,), np.float64),
+                "achieved_goal": spaces.Box(-np.inf, np.inf, (goal_dim,), np.float64),
+                "desired_goal": spaces.Box(-np.inf, np.inf, (goal_dim,), np.float64),
             }
         )
-        self.action_space = spaces.Box(-1.0, 1.0, (self.action_config.dim,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
         self._action_low = self.action_space.low.astype(np.float64)
         self._action_high = self.action_space.high.astype(np.float64)
         self._renderer = None
         self._viewer = None
+        self._check_ik_reaches_home_targets()
 
     # -- structure -------------------------------------------------------------------------------
     @property
+    def obs_map(self):
+        """The observation's multi task map (a Stack)."""
+        return self.plan.obs_map
+
+    @property
     def observation_structure(self) -> dict[str, slice]:
         """Which slice of `observation` each feature (task-map spec) occupies."""
-        return dict(self.obs_map.slices)
+        return dict(self.plan.obs_map.slices)
+
+    @property
+    def goal_structure(self) -> dict[str, slice]:
+        """Which slice of `achieved_goal` / `desired_goal` each goal part (and penalty map) occupies."""
+        return dict(self.plan.goal_slices)
 
     # -- Gymnasium API ----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
-        self._randomize()
+        self.randomizer.randomize(self.data, self.np_random)
         mujoco.mj_forward(self.model, self.data)
-        self._evaluate()
+        self.plan.evaluate(self.model, self.data)
+        self._steps = 0
         obs = self._observation()
         return obs, self._info(obs, ik_error=0.0)
 
@@ -186,50 +195,67 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             self._ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
         warnings_before = self._instability_count()
         mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+        self._steps += 1
         # MuJoCo warns and resets the state when a non-finite or huge qpos/qvel/qacc appears.
         if self._instability_count() > warnings_before:
             obs = self._last_obs
             info = self._info(obs, ik_error) | {"physics_unstable": True}
             return obs, 0.0, False, True, info
-        self._evaluate()
+        self.plan.evaluate(self.model, self.data)
         obs = self._observation()
         info = self._info(obs, ik_error)
-        reward = 1.0 if info["is_success"] else 0.0  # compute_reward's rule, on the distance _info has
+        reward = self._success_value if info["is_success"] else self._failure_value
+        terminated = False
+        if self.plan.penalties:
+            reward += info["penalty"]
+            terminated = info["penalty_terminates"]
+        truncated = self._steps >= self.task.episode_steps
         if self.render_mode == "human":
             self.render()
-        return obs, reward, False, False, info
+        return obs, reward, terminated, truncated, info
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        """1 where ||achieved - desired|| < success_radius, else 0 (paper eq. 8; Gymnasium-Robotics uses 0/-1).
+        """Paper eq. 8: the success value where every goal part is within its tolerance, else the failure
+        value (0/1 by default; 0/-1 with reward = "-1/0"), plus the penalties on the achieved goal.
 
-        Reads only the goals. Vectorised: goals (3,) -> (), (B, 3) -> (B,); float32.
+        Reads only the goals. Vectorised: goals (g,) -> (), (B, g) -> (B,); float32.
         """
-        diff = np.asarray(achieved_goal) - np.asarray(desired_goal)
-        return (np.einsum("...i,...i->...", diff, diff) < self.success_radius**2).astype(np.float32)
+        achieved, desired = np.asarray(achieved_goal), np.asarray(desired_goal)
+        success = self.plan.is_success(achieved, desired)
+        reward = np.where(success, self._success_value, self._failure_value)
+        for cols, penalty in self.plan.penalties:
+            value = achieved[..., cols]
+            applies = value < penalty.above if penalty.below else value > penalty.above
+            reward = reward + np.where(applies, penalty.reward, 0.0)
+        return reward.astype(np.float32)
 
     def relabel(self, obs: dict[str, np.ndarray], new_goal: ArrayLike) -> dict[str, np.ndarray]:
-        """The observation the environment would have emitted with the goal at `new_goal`.
+        """The observation the environment would have emitted with the target moved to `new_goal`.
 
-        Goal-dependent features (position(target), positionDiff(tcp, target), ...) are recomputed;
-        the rest is unchanged. `obs` arrays are (d,) or batched (B, d); `new_goal` (3,) or (B, 3).
+        Goal-dependent features (position(target), positionDiff(tcp, target), quaternionDiff(tcp,
+        target), ...) are recomputed; the rest is unchanged. `obs` arrays are (d,) or batched (B, d);
+        `new_goal` (g,) or (B, g); its penalty columns are replaced by their desired value 0.
         """
         desired = np.asarray(obs["desired_goal"], dtype=np.float64)
         goal = np.broadcast_to(np.asarray(new_goal, dtype=np.float64), desired.shape)
-        observation = self.obs_map.translated(
-            np.asarray(obs["observation"], np.float64), TARGET_SITE, goal - desired
-        )
+        move = self.plan.target_move(np.asarray(obs["achieved_goal"], np.float64), desired, goal)
+        observation = relabelled(self.plan.obs_map, np.asarray(obs["observation"], np.float64), move)
+        desired_goal = goal.copy()
+        for cols, _ in self.plan.penalties:
+            desired_goal[..., cols] = 0.0
         return {
-            "observation": np.asarray(observation, dtype=np.float64),
+            "observation": observation,
             "achieved_goal": np.array(obs["achieved_goal"], dtype=np.float64),
-            "desired_goal": goal.copy(),
+            "desired_goal": desired_goal,
         }
 
     def move_target(self, goal: ArrayLike) -> dict[str, np.ndarray]:
-        """Moves the goal marker to `goal` (3,) without stepping physics; returns the new observation."""
-        self.data.mocap_pos[self._target_mocap] = np.asarray(goal, dtype=np.float64)
+        """Moves the goal marker to the goal `goal` (g,) without stepping physics; returns the new observation."""
+        goal = np.asarray(goal, dtype=np.float64)
+        self.randomizer.place_target(self.data, goal[:3], goal[3:7] if self.plan.pose_goal else None)
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_comPos(self.model, self.data)
-        self._evaluate(kinematics=False)
+        self.plan.evaluate(self.model, self.data)
         return self._observation()
 
     def render(self):
@@ -258,31 +284,8 @@ class TsrlGoalEnv(gym.Env, EzPickle):
             self._viewer = None
 
     # -- internals ---------------------------------------------------------------------------------
-    def _randomize(self) -> None:
-        """Samples the goal (and objects) with self.np_random; sets them in self.data."""
-        raise NotImplementedError
-
-    def _evaluate(self, kinematics: bool = True) -> None:
-        """Evaluates every map of the step once at the current state (after the physics substeps)."""
-        if kinematics:
-            mujoco.mj_kinematics(self.model, self.data)
-            mujoco.mj_comPos(self.model, self.data)
-        value = self._step_maps.in_place(self.model, self.data)
-        if value is not self._value:  # the stack's buffers, the same from the first call on: view them once
-            self._value = value
-            y, J = value
-            self._views = (y[: self.obs_map.dim], y[self._achieved_rows], y[self._desired_rows])
-            ik = self._ik_rows
-            if isinstance(ik, slice):
-                self._ik_value = TaskMapValue(y[ik], J[ik])
-            elif ik is not None:
-                self._ik_value = TaskMapValue(np.empty(ik.size), np.empty((ik.size, J.shape[1])))
-        if isinstance(self._ik_rows, np.ndarray):  # gather the IK map's rows
-            np.take(value.y, self._ik_rows, out=self._ik_value.y)
-            np.take(value.J, self._ik_rows, axis=0, out=self._ik_value.J)
-
     def _observation(self) -> dict[str, np.ndarray]:
-        observation, achieved, desired = self._views
+        observation, achieved, desired = self.plan.views
         obs = {
             "observation": observation.copy(),
             "achieved_goal": achieved.copy(),
@@ -292,47 +295,44 @@ class TsrlGoalEnv(gym.Env, EzPickle):
         return obs
 
     def _info(self, obs: dict[str, np.ndarray], ik_error: float) -> dict[str, Any]:
-        diff = obs["achieved_goal"] - obs["desired_goal"]
-        squared = diff.dot(diff)
-        return {
-            "is_success": bool(squared < self.success_radius**2),  # as in compute_reward
-            "distance": math.sqrt(squared),
-            "ik_error": float(ik_error),
-        }
+        return self.plan.info(obs["achieved_goal"], obs["desired_goal"]) | {"ik_error": float(ik_error)}
 
     def _instability_count(self) -> int:
         counts = self._warning_counts.tolist()
         return counts[_BADQACC] + counts[_BADQVEL] + counts[_BADQPOS]
 
     def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
-        """Servo targets (6,) for action `a`, and the IK residual (0 for joint actions)."""
-        cfg = self.action_config
-        if cfg.mode == "joint":
+        """Servo targets (n,) for action `a`, and the IK residual (0 for joint actions)."""
+        if self._ik is None:
             q = self._qpos[self._arm_qpos]
+            n = len(q)
+            step = self.action_map.spec.joint_step
             return np.minimum(
-                np.maximum(q + cfg.max_joint_step * a[:6], JOINT_LIMITS[:, 0]), JOINT_LIMITS[:, 1]
+                np.maximum(q + step * a[:n], self._joint_range[:, 0]), self._joint_range[:, 1]
             ), 0.0
-        initial = self._ik_value
-        # The TCP position target y + step * a within the workspace; in taskspace mode the rest of
-        # the target (cup down) is constant.
-        p = self._ik_target[:3]
-        np.multiply(a[:3], cfg.max_tcp_step, out=p)
-        np.add(initial.y[:3], p, out=p)
-        np.minimum(np.maximum(p, self.workspace_low, out=p), self.workspace_high, out=p)
-        if cfg.mode == "taskspace_orient":
-            self._ik_target[3:] = a[3:6]
-        target = self._ik_target
+        initial = self.plan.ik_value
+        target = self.action_map.ik_target(a, initial.y)
         if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
             # Its inputs come from the step's own maps and state (finite: a blow-up ends the episode).
-            return self._ik_step.step_from(self._qpos[self._arm_qpos], initial, target)
+            return self._ik.step(self._qpos[self._arm_qpos], initial, target)
         self._ik_data.qpos[:] = self.data.qpos
-        result = solve_ik(  # a local solve from the current pose: no restarts
-            self.model,
-            self._ik_data,
-            self.ik_map,
-            target,
-            initial_value=initial,
-            max_iters=self.ik_iterations,
-            restarts=0,
-        )
+        result = self._ik.solve(self._ik_data, target, initial)  # a local solve from the current pose
         return result.q, result.error_norm
+
+    def _check_ik_reaches_home_targets(self) -> None:
+        """The IK must meet the held values from home (catches conflicting held maps, e.g. two axes)."""
+        hold = self.action_map.spec.hold
+        if not hold or self.action_map.ik_map is None:
+            return
+        held = Stack(self.action_map.ik_map.parts[len(self.action_map.spec.parts) :])
+        target = np.concatenate([h.value for h in hold])
+        data = self._ik_data
+        mujoco.mj_resetDataKeyframe(self.model, data, self._home_key)
+        mujoco.mj_kinematics(self.model, data)
+        mujoco.mj_comPos(self.model, data)
+        result = DlsSolver(self.model, held, JOINT_NAMES).solve(data, target)
+        if not result.converged:
+            raise InvalidConfig(
+                f"the IK cannot hold {held.spec} at {target.round(3).tolist()} (residual {result.error_norm:.3g} "
+                "from home): conflicting or unreachable held values"
+            )

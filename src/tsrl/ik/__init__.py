@@ -1,5 +1,7 @@
-"""Inverse kinematics over task maps: damped least squares with adaptive damping and restarts."""
+"""Inverse kinematics over task maps: damped least squares with adaptive damping, a null-space
+posture term and restarts, in one solver (`DlsSolver`: `.step` for control loops, `.solve` for the
+full solve)."""
 
-from .dls import IKResult, IKStepper, dls_step, ik_step, solve_ik
+from .dls import DlsSolver, IKOptions, IKResult
 
-__all__ = ("IKResult", "IKStepper", "dls_step", "ik_step", "solve_ik")
+__all__ = ("DlsSolver", "IKOptions", "IKResult")

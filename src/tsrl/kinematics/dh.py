@@ -1,4 +1,5 @@
-"""Plain standard-DH forward kinematics in numpy: the independent reference for MuJoCo's frames."""
+"""Plain standard-DH and modified (Craig) DH forward kinematics in numpy: the independent references
+for MuJoCo's frames."""
 
 from __future__ import annotations
 
@@ -35,4 +36,38 @@ def dh_forward(dh_table: Sequence[tuple[float, float, float]], q: ArrayLike) -> 
     T = np.eye(4)
     for (a, d, alpha), theta in zip(dh_table, q):
         T = T @ dh_transform(a, d, alpha, theta)
+    return T
+
+
+def modified_dh_transform(a: float, d: float, alpha: float, theta: float) -> np.ndarray:
+    """Modified (Craig) DH link transform T_{i-1,i} = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i), (4, 4).
+
+    `a` and `alpha` are those of the previous link (a_{i-1}, alpha_{i-1}), as a modified DH table
+    lists them on row i (Franka's documentation does).
+    """
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    return np.array(
+        [
+            [ct, -st, 0.0, a],
+            [st * ca, ct * ca, -sa, -sa * d],
+            [st * sa, ct * sa, ca, ca * d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def modified_dh_forward(mdh_table: Sequence[tuple[float, float, float]], q: ArrayLike) -> np.ndarray:
+    """Pose T_0n of the last modified-DH frame in the base frame, shape (4, 4).
+
+    Args:
+        mdh_table: rows (a_{i-1}, d_i, alpha_{i-1}) in metres and radians, one per joint.
+        q: joint angles (n,) in radians, added to each row's theta = 0.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape != (len(mdh_table),):
+        raise ValueError(f"q has shape {q.shape}; expected ({len(mdh_table)},) for this DH table")
+    T = np.eye(4)
+    for (a, d, alpha), theta in zip(mdh_table, q):
+        T = T @ modified_dh_transform(a, d, alpha, theta)
     return T

@@ -7,9 +7,7 @@ from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
-from numpy.typing import ArrayLike
 
-from ..exceptions import NotRelabelable
 from .frames import Frame, FrameCache
 
 
@@ -70,29 +68,6 @@ class TaskMap(abc.ABC):
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """a - b in the map's coordinates; override where coordinates can jump."""
         return a - b
-
-    def translated(self, y: ArrayLike, frame: str, delta: ArrayLike) -> np.ndarray:
-        """The value y would take if the jointless frame `frame` moved by `delta` in world coordinates.
-
-        `frame` is a static, jointless frame (a mocap body or its site, such as `target`), named as
-        in the map's spec; everything else stays where it is. Vectorised: y (dim,) or (B, dim),
-        delta (3,) or (B, 3). Returns a new array; maps that do not read `frame` return y unchanged.
-
-        Raises:
-            NotRelabelable: the new value cannot be computed from y alone.
-        """
-        y = np.array(y, dtype=np.float64)
-        if frame not in self.frames:
-            return y
-        return self._translated(y, frame, np.asarray(delta, dtype=np.float64))
-
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        """`translated` for a map that reads `frame`; y is already a fresh copy."""
-        raise NotRelabelable(self.spec, frame)
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        """Whether J stays the same when the jointless frame `frame` is translated (velocity maps ask)."""
-        return frame not in self.frames
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.spec} dim={self.dim}>"

@@ -1,30 +1,32 @@
-"""Joint task maps: jointState and jointLimits over the six UR5e arm joints."""
+"""Joint task maps: jointState and jointLimits over the controlled joints given to them."""
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
 
-from ..assets.ur5e import JOINT_NAMES
-from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
+from ..exceptions import SpecError
+from ..kinematics import Joints, arm_dof_indices, arm_qpos_indices, controlled_joints, joint_limits
 from .base import TaskMap
 from .frames import FrameCache
 
 
 class JointState(TaskMap):
-    """jointState: angles q (6,) of the six UR5e arm joints in `JOINT_NAMES` order.
+    """jointState: positions q (n,) of the controlled joints, in the order given.
 
-    Other joints (the free joint of a box, say) are not part of it. J (6, nv) selects the arm's
-    dofs: J[i, dof_i] = 1, zeros elsewhere.
+    `joints` names hinge or slide joints; by default every hinge and slide joint of the model (the
+    six arm joints in the UR5e scenes; a box's free joint is never part of it). J (n, nv) selects the
+    joints' dofs: J[i, dof_i] = 1, zeros elsewhere.
     """
 
-    dim = len(JOINT_NAMES)
     spec = "jointState"
 
-    def __init__(self, model: mujoco.MjModel):
-        self._qadr = arm_qpos_indices(model)
+    def __init__(self, model: mujoco.MjModel, joints: Joints = None):
+        self.joints = controlled_joints(model, joints)
+        self.dim = len(self.joints)
+        self._qadr = arm_qpos_indices(model, self.joints)
         self._J = np.zeros((self.dim, model.nv))
-        self._J[np.arange(self.dim), arm_dof_indices(model)] = 1.0
+        self._J[np.arange(self.dim), arm_dof_indices(model, self.joints)] = 1.0
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         y[:] = cache.data.qpos[self._qadr]
@@ -32,23 +34,29 @@ class JointState(TaskMap):
 
 
 class JointLimits(TaskMap):
-    """jointLimits: signed margins [lo - q, q - hi] (12,) of the six arm joints; all <= 0 inside.
+    """jointLimits: signed margins [lo - q, q - hi] (2n,) of the controlled joints; all <= 0 inside.
 
-    lo, hi are the model's joint ranges (`jnt_range`). J = [-S; S] (12, nv), S the jointState selector.
+    Joints as in `JointState`; lo, hi are the model's joint ranges (`jnt_range`), so every joint must
+    have limits. J = [-S; S] (2n, nv), S the jointState selector.
     """
 
-    dim = 2 * len(JOINT_NAMES)
     spec = "jointLimits"
 
-    def __init__(self, model: mujoco.MjModel):
-        joints = [name_to_id(model, "joint", n) for n in JOINT_NAMES]
-        self._qadr = arm_qpos_indices(model)
-        self._lo = model.jnt_range[joints, 0].copy()
-        self._hi = model.jnt_range[joints, 1].copy()
-        n = len(JOINT_NAMES)
+    def __init__(self, model: mujoco.MjModel, joints: Joints = None):
+        self.joints = controlled_joints(model, joints)
+        n = len(self.joints)
+        self.dim = 2 * n
+        limits = joint_limits(model, self.joints)
+        unlimited = [j for j, lim in zip(self.joints, limits) if not np.isfinite(lim).all()]
+        if unlimited:
+            raise SpecError(f"jointLimits needs joints with limits; {', '.join(unlimited)} have none")
+        self._qadr = arm_qpos_indices(model, self.joints)
+        self._lo = limits[:, 0].copy()
+        self._hi = limits[:, 1].copy()
+        dofs = arm_dof_indices(model, self.joints)
         self._J = np.zeros((self.dim, model.nv))
-        self._J[np.arange(n), arm_dof_indices(model)] = -1.0
-        self._J[n + np.arange(n), arm_dof_indices(model)] = 1.0
+        self._J[np.arange(n), dofs] = -1.0
+        self._J[n + np.arange(n), dofs] = 1.0
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         q = cache.data.qpos[self._qadr]

@@ -12,23 +12,20 @@ from .position import negative_skew
 AXES = "XYZ"
 
 
-class RotationOnly:
-    """Mixin for maps of orientations only: translating a jointless frame changes neither y nor J."""
-
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        return y
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        return True
-
-
 def _aligned_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a - s b with s = sign(a . b) per row, so that q and -q (one orientation) are not far apart."""
-    s = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
-    return a - s * b
+    """a - s b with s = sign(a . b) per row (1 at 0), so that q and -q (one orientation) are not far apart.
+
+    a - (-1) b is a + b exactly, so the two branches are the formula itself; `Stack.difference`
+    inlines the one-row case.
+    """
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if a.ndim == 1 and b.ndim == 1:
+        return a + b if a.dot(b) < 0.0 else a - b
+    dots = np.einsum("...i,...i->...", a, b)[..., None]
+    return np.where(dots < 0.0, a + b, a - b)
 
 
-class Quaternion(RotationOnly, TaskMap):
+class Quaternion(TaskMap):
     """quaternion(f): world orientation of f as a unit quaternion (w, x, y, z) (4,).
 
     Composed along the kinematic chain as MuJoCo's `xquat` (for a site: body xquat * site quat),
@@ -54,7 +51,7 @@ class Quaternion(RotationOnly, TaskMap):
         return _aligned_difference(a, b)
 
 
-class QuaternionDiff(RotationOnly, TaskMap):
+class QuaternionDiff(TaskMap):
     """quaternionDiff(f, g): q_f - s q_g with s = sign(q_f . q_g) (s = 1 at 0), as RAI defines it (4,).
 
     J = E(q_f) Jr_f - s E(q_g) Jr_g (4, nv); s is held constant (y jumps where q_f . q_g = 0).
@@ -81,7 +78,7 @@ class QuaternionDiff(RotationOnly, TaskMap):
             np.subtract(Jq_f, Jq_g, out=J)
 
 
-class Vector(RotationOnly, TaskMap):
+class Vector(TaskMap):
     """vectorX/Y/Z(f): axis A of frame f in world coordinates, a = R_f e_A (3,).
 
     J = -[a]x Jr_f (3, nv), from da/dt = w x a.
@@ -105,7 +102,7 @@ class Vector(RotationOnly, TaskMap):
         np.dot(negative_skew(y, self._skew), s.jacr, out=J)
 
 
-class ScalarProduct(RotationOnly, TaskMap):
+class ScalarProduct(TaskMap):
     """scalarProductAB(f, g): dot product a . b of axis A of f and axis B of g, world coordinates (1,).
 
     J = (a x b)^T (Jr_f - Jr_g) (1, nv).

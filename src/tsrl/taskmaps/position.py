@@ -42,12 +42,6 @@ class Position(TaskMap):
         y[:] = s.pos
         J[:] = s.jacp
 
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        return y + delta
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        return True
-
 
 class PositionDiff(TaskMap):
     """positionDiff(f, g): p_f - p_g (3,) in world coordinates; J = Jp_f - Jp_g (3, nv)."""
@@ -66,13 +60,6 @@ class PositionDiff(TaskMap):
         sf, sg = cache[self.f], cache[self.g]
         np.subtract(sf.pos, sg.pos, out=y)
         np.subtract(sf.jacp, sg.jacp, out=J)
-
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        sign = (frame == self.f.name) - (frame == self.g.name)
-        return y + sign * delta
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        return True
 
 
 class PositionRel(TaskMap):
@@ -103,13 +90,3 @@ class PositionRel(TaskMap):
         Jw += sf.jacp
         Jw -= sg.jacp
         np.dot(sg.rot.T, Jw, out=J)
-
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        if frame == self.f.name and frame != self.g.name and self.g.kind == "body" and self.g.id == 0:
-            return y + delta  # g is the world: R_g = I
-        return super()._translated(y, frame, delta)  # R_g^T delta needs R_g, which y does not hold
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        # With g jointless (Jr_g = 0, Jp_g = 0), J = R_g^T Jp_f does not depend on p_g; with f
-        # jointless, J = R_g^T (-Jp_g + [p_f - p_g]x Jr_g) does depend on p_f.
-        return frame != self.f.name

@@ -10,6 +10,7 @@ from functools import partial
 import mujoco
 
 from ..exceptions import SpecError, UnknownTaskMap
+from ..kinematics import Joints, controlled_joints
 from .base import TaskMap
 from .collision import AccumulatedCollisions, Distance
 from .joint import JointLimits, JointState
@@ -34,6 +35,8 @@ class MapEntry:
 
     args: tuple[str, ...]
     build: Callable[..., TaskMap]  # build(model, *args); a "map" argument arrives built
+    #: Whether the map reads the controlled joints: then build(model, *args, joints=joints).
+    joints: bool = False
 
 
 def _velocity(model: mujoco.MjModel, task_map: TaskMap) -> TaskMap:
@@ -59,8 +62,8 @@ TASK_MAPS: dict[str, MapEntry] = {
     },
     "distance": MapEntry(("geom", "geom"), Distance),
     "accumulatedCollisions": MapEntry((), AccumulatedCollisions),
-    "jointState": MapEntry((), JointState),
-    "jointLimits": MapEntry((), JointLimits),
+    "jointState": MapEntry((), JointState, joints=True),
+    "jointLimits": MapEntry((), JointLimits, joints=True),
     "velocity": MapEntry(("map",), _velocity),
 }
 
@@ -70,7 +73,7 @@ def known_maps() -> tuple[str, ...]:
     return tuple(TASK_MAPS)
 
 
-def parse_spec(spec: str, model: mujoco.MjModel) -> Stack:
+def parse_spec(spec: str, model: mujoco.MjModel, joints: Joints = None) -> Stack:
     """Builds the task maps of a spec, e.g. "fs1, quaternion(tcp), scalarProductZZ(world, tcp)".
 
     A spec is a comma-separated list of maps `name(arg, ...)` (no parentheses for maps without
@@ -78,13 +81,20 @@ def parse_spec(spec: str, model: mujoco.MjModel) -> Stack:
     (sites, else bodies; `world` is the world body), geom names (`distance`) or a map (`velocity`).
     Always returns a Stack, even for one map, so `slices` names every part.
 
+    `joints` are the controlled joints that `jointState` and `jointLimits` read: hinge or slide joint
+    names in order, or None (the default) for every hinge and slide joint of the model, which in
+    the UR5e scenes are the six arm joints (see `tsrl.kinematics.joint_ids`). Pass a robot's joints
+    (`tsrl.robots.Robot.joints`) where the model has other hinge or slide joints.
+
     Raises:
         UnknownTaskMap: a name that is neither a map nor a preset (the message lists both).
         UnknownName: a frame or geom the model does not have (the message lists the model's).
         SpecError: a syntax error (with its position) or a wrong argument count (with the expected
             count).
     """
-    return Stack(_Parser(spec).parse(model, ()))
+    if joints is not None:
+        joints = controlled_joints(model, joints)  # checked here, once for every map that reads them
+    return Stack(_Parser(spec, joints).parse(model, ()))
 
 
 @dataclass(frozen=True)
@@ -105,8 +115,9 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>[^\s,()]+)|(?P<punct>[,()]))")
 class _Parser:
     """Recursive descent over: spec := item ("," item)* ; item := NAME ["(" [item ("," item)*] ")"]."""
 
-    def __init__(self, spec: str):
+    def __init__(self, spec: str, joints: Joints = None):
         self.spec = spec
+        self.joints = joints
         self.tokens: list[tuple[str, str, int]] = []  # (kind, text, position)
         pos = 0
         while pos < len(spec):
@@ -166,7 +177,7 @@ class _Parser:
                 raise self.error(f"preset {node.name} takes no arguments", node.pos)
             if node.name in presets:
                 raise self.error(f"preset {node.name} refers to itself", node.pos)
-            return _Parser(OBS_PRESETS[node.name]).parse(model, (*presets, node.name))
+            return _Parser(OBS_PRESETS[node.name], self.joints).parse(model, (*presets, node.name))
         entry = TASK_MAPS.get(node.name)
         if entry is None:
             raise UnknownTaskMap(node.name, [*TASK_MAPS, *OBS_PRESETS])
@@ -191,6 +202,8 @@ class _Parser:
             else:
                 values.append(arg.name)
         try:
+            if entry.joints:
+                return [entry.build(model, *values, joints=self.joints)]
             return [entry.build(model, *values)]
         except SpecError as err:
             raise self.error(str(err), node.pos) from None

@@ -9,6 +9,7 @@ import numpy as np
 from ..exceptions import SpecError
 from .base import TaskMap
 from .frames import Frame, FrameCache
+from .orientation import Quaternion
 from .velocity import Velocity
 
 
@@ -56,6 +57,11 @@ class Stack(TaskMap):
             for p, span in zip(self.parts, self._spans)
             if type(p).difference is not TaskMap.difference
         )
+        # The same for one value (1-D a and b): None stands for a `Quaternion` part, whose rule
+        # a - sign(a . b) b is applied inline (numpy's general path costs as much as evaluating the map).
+        self._jumpy_1d = tuple(
+            (None if type(p).difference is Quaternion.difference else p, span) for p, span in self._jumpy
+        )
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return tuple(f for p in self.parts for f in p.frame_refs())
@@ -88,22 +94,24 @@ class Stack(TaskMap):
         return y, J, own, velocities, repeated
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """a - b, each part's rows by the part's own `difference`; a, b (dim,) or (B, dim).
+
+        Only parts that override `difference` (quaternions) are treated on their own rows; for one
+        value (the IK's case, once per iteration) a quaternion's rule is applied inline.
+        """
         a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
         out = a - b
+        if out.ndim == 1 and a.ndim == 1:
+            for part, span in self._jumpy_1d:
+                if part is None:  # a quaternion: a - sign(a . b) b, sign 1 at 0
+                    if a[span].dot(b[span]) < 0.0:
+                        out[span] = a[span] + b[span]
+                else:
+                    out[span] = part.difference(a[span], b[span])
+            return out
         for part, span in self._jumpy:
             out[..., span] = part.difference(a[..., span], b[..., span])
         return out
-
-    def translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        y = np.array(y, dtype=np.float64)
-        if frame not in self.frames:
-            return y
-        for part, span in zip(self.parts, self._spans):
-            y[..., span] = part.translated(y[..., span], frame, delta)
-        return y
-
-    def jacobian_translation_invariant(self, frame: str) -> bool:
-        return all(p.jacobian_translation_invariant(frame) for p in self.parts)
 
     def __len__(self) -> int:
         return len(self.parts)

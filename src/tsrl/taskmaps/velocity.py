@@ -40,9 +40,3 @@ class Velocity(TaskMap):
         """
         J[:] = J_map
         np.dot(J, cache.qvel, out=y)
-
-    def _translated(self, y: np.ndarray, frame: str, delta: np.ndarray) -> np.ndarray:
-        # A jointless frame has zero velocity, so y_dot changes only through J_m.
-        if self.map.jacobian_translation_invariant(frame):
-            return y
-        return super()._translated(y, frame, delta)

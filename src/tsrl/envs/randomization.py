@@ -1,0 +1,148 @@
+"""Start-state and goal randomisation of a task: objects, the goal marker's pose, an obstacle, start noise."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from ..assets.ur5e import JOINT_NAMES, TARGET_BODY, TCP_SITE
+from ..exceptions import InvalidConfig
+from ..kinematics import arm_qpos_indices, as_slice, name_to_id
+from .tasks import PositionSampler, Task
+
+
+class Randomizer:
+    """Samples a task's start state and goal with the env's generator and writes them into MjData.
+
+    Draw order (part of the seeded behaviour): start noise, objects, goal position (drawn again while
+    too close to the first object or, with an obstacle, to the TCP's start), goal orientation,
+    obstacle.
+    """
+
+    def __init__(self, model: mujoco.MjModel, task: Task):
+        self.model = model
+        self.task = task
+        self._target_mocap = int(model.body_mocapid[name_to_id(model, "body", TARGET_BODY)])
+        if self._target_mocap < 0:
+            raise InvalidConfig(f'the scene\'s body {TARGET_BODY!r} must be a mocap body (mocap="true")')
+        self._nominal = (
+            np.array(task.goal.orientation.nominal or model.body_quat[name_to_id(model, "body", TARGET_BODY)])
+            if task.goal.orientation
+            else None
+        )
+        self._arm_qpos = as_slice(arm_qpos_indices(model))
+        self._arm_ctrl = as_slice([name_to_id(model, "actuator", n) for n in JOINT_NAMES])
+        self._objects = []
+        for obj in task.objects:
+            body = name_to_id(model, "body", obj.body)
+            joint = model.body_jntadr[body]
+            if joint < 0 or int(model.jnt_type[joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
+                raise InvalidConfig(f"object {obj.body!r} needs a free joint to be placed at reset")
+            self._objects.append((int(model.jnt_qposadr[joint]), obj))
+        self._obstacle = None
+        if task.obstacle is not None:
+            o = task.obstacle
+            mocap = int(model.body_mocapid[name_to_id(model, "body", o.body)])
+            if mocap < 0:
+                raise InvalidConfig(f"obstacle body {o.body!r} must be a mocap body")
+            geom = name_to_id(model, "geom", o.geom)
+            self._obstacle = (mocap, geom, name_to_id(model, "site", TCP_SITE))
+
+    def randomize(self, data: mujoco.MjData, rng: np.random.Generator) -> None:
+        """Samples and sets the start state and goal in `data` (after a reset to the home keyframe)."""
+        task = self.task
+        if task.start_noise > 0:
+            q = data.qpos[self._arm_qpos] + rng.uniform(-task.start_noise, task.start_noise, len(JOINT_NAMES))
+            data.qpos[self._arm_qpos] = q
+            data.ctrl[self._arm_ctrl] = q
+        starts = []
+        for adr, obj in self._objects:
+            pos = _sample_box(rng, obj.center, obj.half_extent)
+            data.qpos[adr : adr + 7] = [*pos, 1.0, 0.0, 0.0, 0.0]
+            starts.append(pos)
+        tcp_start = None
+        if self._obstacle is not None:
+            mujoco.mj_kinematics(self.model, data)
+            tcp_start = data.site_xpos[self._obstacle[2]].copy()
+        goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
+        quat = self._sample_orientation(rng) if task.goal.orientation is not None else None
+        self.place_target(data, goal, quat)
+        if self._obstacle is not None:
+            self._place_obstacle(data, rng, tcp_start, goal)
+
+    def place_target(self, data: mujoco.MjData, pos: np.ndarray, quat: np.ndarray | None = None) -> None:
+        """Puts the goal marker at `pos` (3,) and, for pose goals, orientation `quat` (4,)."""
+        data.mocap_pos[self._target_mocap] = pos
+        if quat is not None:
+            data.mocap_quat[self._target_mocap] = quat
+
+    def _sample_goal(self, rng: np.random.Generator, first_object, tcp_start) -> np.ndarray:
+        p: PositionSampler = self.task.goal.position
+        while True:
+            goal = _sample_box(rng, p.center, p.half_extent)
+            if p.lift_probability > 0:
+                lift = rng.uniform(0.0, p.max_lift) if rng.uniform() < p.lift_probability else 0.0
+                goal[2] = goal[2] + lift
+            if first_object is not None and np.linalg.norm(goal - first_object) < p.min_distance:
+                continue
+            if (
+                tcp_start is not None
+                and np.linalg.norm(goal - tcp_start) < self.task.obstacle.min_goal_distance
+            ):
+                continue
+            return goal
+
+    def _sample_orientation(self, rng: np.random.Generator) -> np.ndarray:
+        """The nominal orientation turned by a yaw about its z axis, then tilted within the cone."""
+        o = self.task.goal.orientation
+        cos_tilt = rng.uniform(math.cos(math.radians(o.cone)), 1.0)
+        azimuth = rng.uniform(0.0, 2 * math.pi)
+        yaw = rng.uniform(-math.radians(o.max_yaw), math.radians(o.max_yaw))
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, self._nominal)
+        z = rot.reshape(3, 3)[:, 2]
+        e1 = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        axis = math.cos(azimuth) * e1 + math.sin(azimuth) * np.cross(z, e1)
+        tilt, turn, out, tmp = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4)
+        mujoco.mju_axisAngle2Quat(tilt, axis, math.acos(min(cos_tilt, 1.0)))
+        mujoco.mju_axisAngle2Quat(turn, np.array([0.0, 0.0, 1.0]), yaw)
+        mujoco.mju_mulQuat(tmp, self._nominal, turn)
+        mujoco.mju_mulQuat(out, tilt, tmp)
+        return out
+
+    def _place_obstacle(
+        self, data: mujoco.MjData, rng: np.random.Generator, start: np.ndarray, goal: np.ndarray
+    ):
+        """Draws the obstacle until it touches nothing at the start and leaves `goal_clearance` m around the
+        goal (at most `_OBSTACLE_TRIES` draws; the last one stays)."""
+        o = self.task.obstacle
+        mocap, geom, _ = self._obstacle
+        for _ in range(_OBSTACLE_TRIES):
+            u = rng.uniform(o.fraction_low, o.fraction_high)
+            center = start + u * (goal - start) + rng.uniform(-o.jitter, o.jitter, 3)
+            radius, half_height = rng.uniform(*o.radius), rng.uniform(*o.half_height)
+            self.model.geom_size[geom, :2] = (radius, half_height)
+            self.model.geom_rbound[geom] = math.hypot(radius, half_height)
+            data.mocap_pos[mocap] = center
+            mujoco.mj_kinematics(self.model, data)
+            mujoco.mj_collision(self.model, data)
+            touches = any(geom in c.geom for c in data.contact[: data.ncon])
+            if not touches and np.linalg.norm((goal - center)[:2]) >= radius + o.goal_clearance:
+                return
+
+
+#: Draws of the obstacle before the last one is kept (each draw checks contacts and the goal's room).
+_OBSTACLE_TRIES = 20
+
+
+def _sample_box(rng: np.random.Generator, center, half_extent) -> np.ndarray:
+    """center + uniform(-h, h) on the axes with h > 0 (the others are not drawn)."""
+    pos = np.array(center, dtype=np.float64)
+    h = np.asarray(half_extent, dtype=np.float64)
+    axes = np.flatnonzero(h > 0)
+    if axes.size:
+        pos[axes] = pos[axes] + rng.uniform(-h[axes], h[axes], axes.size)
+    return pos

@@ -1,0 +1,44 @@
+"""A task's MuJoCo model: a built-in scene, or a model file (MJCF or URDF) that gets the goal marker added."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+
+from ..assets import SCENES, load_model
+from ..assets.ur5e import TARGET_BODY, TARGET_SITE
+from ..exceptions import InvalidConfig, ModelLoadError
+from .tasks import Task
+
+#: Model files a task's `scene` may name by path.
+MODEL_SUFFIXES = (".xml", ".urdf")
+
+
+def load_scene(task: Task) -> mujoco.MjModel:
+    """Compiles the task's scene. A file path is relative to the task file; a model without a `target`
+    body gets one (a mocap body with a `target` site, no collisions), placed at the goal box centre."""
+    if task.scene in SCENES:
+        return load_model(task.scene)
+    path = Path(task.scene)
+    if not path.is_absolute() and task.source is not None:
+        path = task.source.parent / path
+    if path.suffix.lower() not in MODEL_SUFFIXES or not path.is_file():
+        raise InvalidConfig(
+            f"scene = {task.scene!r}: neither a built-in scene ({', '.join(SCENES)}) nor an existing "
+            f"model file ({', '.join(MODEL_SUFFIXES)})"
+        )
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+        if spec.body(TARGET_BODY) is None:
+            body = spec.worldbody.add_body(name=TARGET_BODY, mocap=True, pos=list(task.goal.position.center))
+            body.add_site(
+                name=TARGET_SITE,
+                type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                size=[0.015, 0, 0],
+                rgba=[0.9, 0.1, 0.1, 0.8],
+            )
+        return spec.compile()
+    except ValueError as err:
+        reason = " ".join(str(err).split())
+        raise ModelLoadError(f"scene = {str(path)!r}: MuJoCo could not load it: {reason}") from None

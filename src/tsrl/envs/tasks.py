@@ -1,0 +1,395 @@
+"""Tasks as data: the paper's MDP (observation, action, goal, reward) as a frozen dataclass loaded from TOML.
+
+A task file (docs/tasks.md lists every key) names a robot and a scene, the observation spec, the
+action (a built-in mode or task-map parts with their scaling and held maps), the goal (the
+achieved-goal map and the sampler of the `target` mocap body's pose), the success tolerances and
+reward, penalties, start-state randomisation, episode length and control period. `load_task`
+validates everything it can without a model: unknown keys, wrong types, bad numbers; the
+environment validates the rest (map and frame names, IK feasibility, relabelling) when it is built.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal
+
+from ..exceptions import InvalidConfig
+from .actions import ACTION_PRESETS, WORKSPACE_HIGH, WORKSPACE_LOW, ActionPart, ActionSpec, HeldPart
+
+#: Robots a task may name (their joints, TCP site, actuators: envs/robot.py).
+ROBOT_NAMES: tuple[str, ...] = ("ur5e",)
+
+
+@dataclass(frozen=True)
+class PositionSampler:
+    """Goal positions: uniform in a box; optionally lifted; optionally away from the first object.
+
+    Attributes:
+        center: centre of the box [m], world frame.
+        half_extent: half-extent [m] per axis; an axis with 0 is not sampled (stays at the centre).
+        lift_probability: probability that a goal is lifted above the box by uniform(0, max_lift).
+        max_lift: largest lift [m].
+        min_distance: goals closer than this [m] to the first object's start are drawn again.
+    """
+
+    center: tuple[float, float, float]
+    half_extent: tuple[float, float, float]
+    lift_probability: float = 0.0
+    max_lift: float = 0.0
+    min_distance: float = 0.0
+
+
+@dataclass(frozen=True)
+class OrientationSampler:
+    """Goal orientations: the nominal orientation tilted within a cone, turned about its tool axis.
+
+    The goal frame's z axis lies uniformly (by area) within `cone` degrees of the nominal z axis; its
+    rotation about its own z axis is uniform within +-`max_yaw` degrees (180: any yaw).
+
+    Attributes:
+        nominal: the orientation (w, x, y, z) at zero tilt and yaw; default: the scene's target's.
+        cone: largest tilt [deg] of the z axis from the nominal's.
+        max_yaw: largest rotation [deg] about the z axis (180 = free yaw).
+    """
+
+    cone: float
+    max_yaw: float = 180.0
+    nominal: tuple[float, float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class GoalSpec:
+    """The goal: what is achieved, and how the desired goal (the `target` mocap body) is sampled.
+
+    Attributes:
+        map: the achieved-goal map: "position(f)" or a pose "position(f), quaternion(f)" of one
+            frame f (the TCP, an object); the desired goal is the same map of `target`.
+        position: sampler of the target position.
+        orientation: sampler of the target orientation (pose goals only).
+    """
+
+    map: str
+    position: PositionSampler
+    orientation: OrientationSampler | None = None
+
+
+@dataclass(frozen=True)
+class Penalty:
+    """A reward term on a task map that does not read the goal (e.g. collisions).
+
+    Added to the reward when the map's value exceeds `above`; the map's value is carried in the
+    achieved goal (its desired value is 0), so the term stays exact when HER relabels the goal.
+
+    Attributes:
+        map: one task map spec, e.g. "accumulatedCollisions" or "distance(suction_cup, obstacle)".
+        above: threshold: the penalty applies where the value is > above (below, with `below`).
+        reward: added to the reward where it applies (e.g. -1).
+        below: apply where the value is < above instead (e.g. a distance below a margin).
+        terminate: end the episode (terminated=True) where it applies.
+    """
+
+    map: str
+    above: float = 0.0
+    reward: float = -1.0
+    below: bool = False
+    terminate: bool = False
+
+
+@dataclass(frozen=True)
+class SuccessSpec:
+    """Paper eq. 8: success where every goal part is within its tolerance; the sparse reward.
+
+    Attributes:
+        position: tolerance [m] on the distance between achieved and desired positions.
+        orientation: tolerance [deg] on the angle between achieved and desired orientations.
+        reward: "0/1" (success 1, else 0; the paper) or "-1/0" (Gymnasium-Robotics' convention).
+        penalties: reward terms on goal-independent task maps.
+    """
+
+    position: float = 0.05
+    orientation: float = 15.0
+    reward: Literal["0/1", "-1/0"] = "0/1"
+    penalties: tuple[Penalty, ...] = ()
+
+
+@dataclass(frozen=True)
+class ObjectSampler:
+    """A free body placed at reset uniformly in a box (upright, at rest).
+
+    Attributes:
+        body: the body's name (it must have a free joint).
+        center: centre of the box [m]; half_extent: per axis, 0 = not sampled.
+    """
+
+    body: str
+    center: tuple[float, float, float]
+    half_extent: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ObstacleSampler:
+    """A mocap obstacle placed at reset between the TCP's start and the goal.
+
+    Its centre is start + u (goal - start), u uniform in [fraction_low, fraction_high], plus a
+    uniform offset of +-jitter [m] per axis; its geom's radius and half-height are uniform in
+    their ranges; it is drawn again while it touches anything at the start or its axis passes
+    within radius + `goal_clearance` [m] of the goal (horizontally). Goals closer to the start than
+    `min_goal_distance` are drawn again.
+
+    Attributes:
+        body: the mocap body; geom: its collision geom (a cylinder or box).
+    """
+
+    body: str
+    geom: str
+    fraction_low: float = 0.4
+    fraction_high: float = 0.6
+    jitter: float = 0.01
+    radius: tuple[float, float] = (0.03, 0.05)
+    half_height: tuple[float, float] = (0.04, 0.08)
+    min_goal_distance: float = 0.15
+    goal_clearance: float = 0.08
+
+
+@dataclass(frozen=True)
+class Task:
+    """A task: the paper's MDP as data (docs/tasks.md).
+
+    Attributes:
+        name: the task's name (gym ids of built-in tasks are "tsrl/<name>").
+        robot: a built-in robot (ROBOT_NAMES).
+        scene: a built-in scene (tsrl.assets.SCENES) or the path of an MJCF/URDF file (relative to
+            the task file); a scene without a `target` body gets one added.
+        observation: an observation preset or task-map spec.
+        action: a built-in action mode (ACTION_PRESETS) or an ActionSpec.
+        goal: the goal map and its sampler.
+        success: tolerances, reward convention and penalties.
+        objects: free bodies placed at reset.
+        obstacle: an obstacle placed between the start and the goal at reset.
+        start_noise: uniform noise [rad] added to each arm joint of the home pose at reset (0: none).
+        episode_steps: control steps per episode.
+        control_dt: control period [s] (a multiple of the scene's physics timestep).
+        description: one line shown in listings.
+    """
+
+    name: str
+    goal: GoalSpec
+    robot: str = "ur5e"
+    scene: str = "reach"
+    observation: str = "baseline"
+    action: ActionSpec | str = "taskspace"
+    success: SuccessSpec = field(default_factory=SuccessSpec)
+    objects: tuple[ObjectSampler, ...] = ()
+    obstacle: ObstacleSampler | None = None
+    start_noise: float = 0.0
+    episode_steps: int = 50
+    control_dt: float = 0.04
+    description: str = ""
+    #: The file the task was loaded from (scene paths are relative to it); None for tasks in code.
+    source: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    @property
+    def action_spec(self) -> ActionSpec:
+        """The action as an ActionSpec (a built-in mode resolved)."""
+        return ACTION_PRESETS[self.action] if isinstance(self.action, str) else self.action
+
+
+#: Built-in tasks: name -> TOML file under tsrl/envs/task_files.
+BUILTIN_TASKS: dict[str, str] = {
+    "UR5eReach-v0": "reach.toml",
+    "UR5ePickPlace-v0": "pick_place.toml",
+    "UR5ePoseReach-v0": "pose_reach.toml",
+    "UR5eObstacleReach-v0": "obstacle_reach.toml",
+}
+
+
+def builtin_task_path(name: str) -> Path:
+    """The TOML file of a built-in task."""
+    if name not in BUILTIN_TASKS:
+        raise InvalidConfig(f"unknown built-in task {name!r}; accepted: {', '.join(BUILTIN_TASKS)}")
+    return Path(str(resources.files(__package__).joinpath("task_files", BUILTIN_TASKS[name])))
+
+
+def load_task(task: Task | str | Path) -> Task:
+    """A Task from a built-in name, a TOML file path, or a Task (returned as is).
+
+    Raises:
+        InvalidConfig: the file is missing or not TOML, or a key is unknown, of the wrong type or
+            out of range (one line naming the file, the key and what is accepted).
+    """
+    if isinstance(task, Task):
+        return task
+    path = builtin_task_path(task) if isinstance(task, str) and task in BUILTIN_TASKS else Path(task)
+    if not path.is_file():
+        raise InvalidConfig(
+            f"no task file {str(path)!r}; give a TOML file or a built-in task: {', '.join(BUILTIN_TASKS)}"
+        )
+    try:
+        table = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise InvalidConfig(f"{path}: not a valid TOML file: {err}") from None
+    try:
+        return _build(Task, table, "", extra={"source": path})
+    except InvalidConfig as err:
+        raise InvalidConfig(f"{path}: {err}") from None
+
+
+# -- TOML -> dataclasses ----------------------------------------------------------------------------
+def _build(cls: type, table: Any, where: str, extra: dict[str, Any] | None = None) -> Any:
+    """An instance of dataclass `cls` from a TOML table, with typed, named errors."""
+    if cls is ActionSpec and isinstance(table, str):
+        return table
+    if not isinstance(table, dict):
+        raise InvalidConfig(f"[{where}] must be a table; got {table!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name for f in dataclasses.fields(cls) if f.name != "source"}
+    unknown = sorted(set(table) - fields)
+    if unknown:
+        raise InvalidConfig(
+            f"unknown key {unknown[0]!r} in {_place(where)}; accepted: {', '.join(sorted(fields))}"
+        )
+    kwargs = {
+        key: _value(hints[key], value, f"{where}.{key}" if where else key) for key, value in table.items()
+    }
+    try:
+        return cls(**kwargs, **(extra or {}))
+    except TypeError as err:  # a required key is missing
+        missing = str(err).split("argument")[-1].strip(": ")
+        raise InvalidConfig(f"missing key {missing} in {_place(where)}") from None
+
+
+def _place(where: str) -> str:
+    return f"[{where}]" if where else "the task"
+
+
+def _value(hint: Any, value: Any, key: str) -> Any:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        options = [a for a in args if a is not type(None)]
+        if str in options and isinstance(value, str):
+            return value
+        return _value(next(a for a in options if a is not str), value, key)
+    if origin is Literal:
+        if value not in args:
+            raise InvalidConfig(f"{key} = {value!r}; accepted: {', '.join(map(repr, args))}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list):
+            raise InvalidConfig(f"{key} must be a list; got {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_value(args[0], v, f"{key}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise InvalidConfig(f"{key} must have {len(args)} entries; got {len(value)}")
+        return tuple(_value(a, v, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+    if dataclasses.is_dataclass(hint):
+        return _build(hint, value, key)
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise InvalidConfig(f"{key} must be a number; got {value!r}")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise InvalidConfig(f"{key} must be an integer; got {value!r}")
+        return value
+    if hint is bool or hint is str:
+        if not isinstance(value, hint):
+            raise InvalidConfig(f"{key} must be a {hint.__name__}; got {value!r}")
+        return value
+    raise InvalidConfig(f"{key}: unsupported value {value!r}")  # pragma: no cover - every hint is above
+
+
+# -- validation without a model ----------------------------------------------------------------------
+def _validate(task: Task) -> None:
+    if task.robot not in ROBOT_NAMES:
+        raise InvalidConfig(f"robot = {task.robot!r}; accepted: {', '.join(ROBOT_NAMES)}")
+    if isinstance(task.action, str) and task.action not in ACTION_PRESETS:
+        raise InvalidConfig(
+            f"action = {task.action!r}; accepted: {', '.join(ACTION_PRESETS)} or an [action] table"
+        )
+    _positive("episode_steps", task.episode_steps)
+    _positive("control_dt", task.control_dt)
+    _positive("success.position", task.success.position)
+    _positive("success.orientation", task.success.orientation)
+    if not 0 <= task.start_noise < math.pi:
+        raise InvalidConfig(f"start_noise must be in [0, pi) rad; got {task.start_noise}")
+    p = task.goal.position
+    if any(h < 0 for h in p.half_extent) or not 0 <= p.lift_probability <= 1 or p.max_lift < 0:
+        raise InvalidConfig(
+            "goal.position: half_extent and max_lift must be >= 0 and lift_probability in [0, 1]; "
+            f"got {p.half_extent}, {p.max_lift}, {p.lift_probability}"
+        )
+    if p.min_distance > 0 and not task.objects:
+        raise InvalidConfig(
+            "goal.position.min_distance needs an object ([[objects]]) to keep the distance from"
+        )
+    if task.action_spec.uses_ik and not isinstance(task.action, str):
+        for part in task.action_spec.parts:
+            if part.map.startswith("position(") and part.low and part.high:
+                _goal_within(task, part.low, part.high)
+    elif task.action_spec.uses_ik:
+        _goal_within(task, WORKSPACE_LOW, WORKSPACE_HIGH)
+    o = task.goal.orientation
+    if o is not None:
+        if not 0 <= o.cone <= 90 or not 0 <= o.max_yaw <= 180:
+            raise InvalidConfig(
+                f"goal.orientation: cone must be in [0, 90] deg and max_yaw in [0, 180]; got {o}"
+            )
+        if o.nominal is not None and not math.isclose(math.hypot(*o.nominal), 1.0, abs_tol=1e-6):
+            raise InvalidConfig(f"goal.orientation.nominal must be a unit quaternion; got {list(o.nominal)}")
+    s = task.obstacle
+    if s is not None and not (0 < s.fraction_low <= s.fraction_high < 1 and 0 < s.radius[0] <= s.radius[1]):
+        raise InvalidConfig(
+            f"obstacle: need 0 < fraction_low <= fraction_high < 1 and 0 < radius[0] <= radius[1]; got {s}"
+        )
+
+
+def _positive(key: str, value: float) -> None:
+    if not value > 0:
+        raise InvalidConfig(f"{key} must be > 0; got {value}")
+
+
+def _goal_within(task: Task, low: tuple[float, ...], high: tuple[float, ...]) -> None:
+    """Goal positions must lie within the bounds of the TCP position target (else they cannot be reached)."""
+    if not task.goal.map.startswith("position(tcp)"):
+        return
+    p = task.goal.position
+    lo = [c - h for c, h in zip(p.center, p.half_extent)]
+    hi = [c + h + (p.max_lift if i == 2 else 0.0) for i, (c, h) in enumerate(zip(p.center, p.half_extent))]
+    if any(a < b for a, b in zip(lo, low)) or any(a > b for a, b in zip(hi, high)):
+        raise InvalidConfig(
+            f"goal.position box [{_fmt(lo)}] .. [{_fmt(hi)}] leaves the workspace the TCP target may reach, "
+            f"[{_fmt(low)}] .. [{_fmt(high)}]"
+        )
+
+
+def _fmt(v: Any) -> str:
+    return ", ".join(f"{x:g}" for x in v)
+
+
+__all__ = (
+    "BUILTIN_TASKS",
+    "ActionPart",
+    "GoalSpec",
+    "HeldPart",
+    "ObjectSampler",
+    "ObstacleSampler",
+    "OrientationSampler",
+    "Penalty",
+    "PositionSampler",
+    "SuccessSpec",
+    "Task",
+    "builtin_task_path",
+    "load_task",
+)

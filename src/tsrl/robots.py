@@ -1,0 +1,222 @@
+"""Robot descriptions: the names a task needs from an arm's model (controlled joints, TCP site, home
+keyframe, position servos, suction), for a built-in arm or any MJCF or URDF file.
+
+Kinematics, task maps and IK never read a `Robot`: they take the controlled joints as an argument
+(`robot.joints`). This module is the one place that maps the built-in robot names to their assets.
+
+From Python::
+
+    robot = Robot(name="arm3", model="arm3.xml", joints=("j1", "j2", "j3"), tcp="tool")
+    model = robot.load_model()  # compiles the file and checks every name against it
+
+or from a few lines of TOML (`load_robot("arm3.toml")`; paths are relative to the TOML file)::
+
+    name = "arm3"
+    model = "arm3.xml"                  # MJCF (.xml) or URDF (.urdf)
+    joints = ["j1", "j2", "j3"]
+    tcp = "tool"                        # a site (or a body)
+    home = "home"                       # optional keyframe
+    actuators = ["a1", "a2", "a3"]      # optional position servos, one per joint
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from .assets import SCENES, load_model, ur5e
+from .exceptions import InvalidConfig, ModelLoadError, UnknownName
+from .kinematics import arm_qpos_indices, controlled_joints, name_to_id
+from .taskmaps import resolve_frame
+
+_TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The names of an arm in its model; `validate(model)` checks them (errors list what the model has)."""
+
+    name: str
+    """What the robot is called (a built-in name, or any label)."""
+    model: str
+    """A built-in scene (`tsrl.assets.SCENES`) or the path of an MJCF (.xml) or URDF (.urdf) file."""
+    joints: tuple[str, ...]
+    """Controlled hinge or slide joints, base to tip: the order of q, of jointState and of the IK."""
+    tcp: str
+    """Frame of the tool centre point: a site, else a body (a URDF file has bodies only)."""
+    home: str | None = None
+    """Keyframe of the home (rest) configuration."""
+    actuators: tuple[str, ...] = ()
+    """Position servos, one per joint in `joints` order (empty: the model has none)."""
+    suction: str | None = None
+    """Suction (adhesion) actuator, if the arm has a suction cup."""
+
+    def __post_init__(self) -> None:
+        for key in ("joints", "actuators"):
+            value = getattr(self, key)
+            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+                raise InvalidConfig(f"robot {self.name!r}: {key} must be a sequence of names; got {value!r}")
+            object.__setattr__(self, key, tuple(value))
+        if self.actuators and len(self.actuators) != len(self.joints):
+            raise InvalidConfig(
+                f"robot {self.name!r}: {len(self.actuators)} actuators for {len(self.joints)} joints; "
+                "give one position actuator per joint, in the joints' order, or none"
+            )
+
+    @classmethod
+    def from_model(
+        cls,
+        model: mujoco.MjModel,
+        *,
+        tcp: str,
+        joints: Sequence[str] | None = None,
+        home: str | None = None,
+        actuators: Sequence[str] | None = None,
+        suction: str | None = None,
+        name: str = "robot",
+        source: str = "",
+    ) -> Robot:
+        """A validated description of the arm in `model`.
+
+        `joints` None takes every hinge and slide joint of the model; `actuators` None takes the
+        position servos that drive those joints, one each, if the model has them (else none).
+        `source` is the model's scene name or file path (`Robot.model`).
+        """
+        joints = controlled_joints(model, joints)
+        if actuators is None:
+            actuators = _servos_of(model, joints)
+        robot = cls(name, source, tuple(joints), tcp, home, tuple(actuators), suction)
+        return robot.validate(model)
+
+    @classmethod
+    def from_dict(cls, spec: Mapping[str, Any], base: Path | None = None) -> Robot:
+        """A description from a mapping (a TOML table); a relative `model` path is taken from `base`."""
+        known = [f.name for f in fields(cls)]
+        unknown = sorted(set(spec) - set(known))
+        if unknown:
+            raise InvalidConfig(f"unknown robot keys {', '.join(unknown)}; accepted: {', '.join(known)}")
+        missing = [k for k in ("name", "model", "joints", "tcp") if k not in spec]
+        if missing:
+            raise InvalidConfig(f"a robot needs {', '.join(missing)} (keys: {', '.join(known)})")
+        values = dict(spec)
+        model = str(values["model"])
+        if base is not None and model not in SCENES and not Path(model).is_absolute():
+            values["model"] = str(base / model)
+        values["joints"] = tuple(values["joints"])
+        values["actuators"] = tuple(values.get("actuators", ()))
+        return cls(**values)
+
+    def load_model(self) -> mujoco.MjModel:
+        """Compiles `model` (built-in scene, MJCF or URDF file) and validates the names against it."""
+        if self.model in SCENES or Path(self.model).suffix.lower() != ".urdf":
+            model = load_model(self.model)
+        else:
+            path = Path(self.model)
+            if not path.is_file():
+                raise ModelLoadError(f"robot {self.name!r}: no URDF file {self.model!r}")
+            try:
+                model = mujoco.MjModel.from_xml_path(str(path))
+            except ValueError as err:
+                reason = " ".join(str(err).split())
+                raise ModelLoadError(f"could not load URDF model {self.model!r}: {reason}") from None
+        self.validate(model)
+        return model
+
+    def validate(self, model: mujoco.MjModel) -> Robot:
+        """Checks every name against `model`; returns self.
+
+        Raises:
+            UnknownName: a joint, TCP frame, keyframe or actuator the model lacks (the message lists
+                the model's names of that kind: sites and bodies for the TCP).
+            InvalidConfig: a joint that is not a hinge or slide joint, or an actuator that is not a
+                position servo of its joint.
+        """
+        controlled_joints(model, self.joints)
+        resolve_frame(model, self.tcp)
+        if self.home is not None:
+            name_to_id(model, "key", self.home)
+        for actuator, joint in zip(self.actuators, self.joints):
+            a = name_to_id(model, "actuator", actuator)
+            j = name_to_id(model, "joint", joint)
+            if int(model.actuator_trntype[a]) != _TRN_JOINT or int(model.actuator_trnid[a, 0]) != j:
+                raise InvalidConfig(f"actuator {actuator!r} does not drive joint {joint!r}")
+            if not _is_servo(model, a):
+                raise InvalidConfig(f"actuator {actuator!r} is not a position servo (MJCF <position>)")
+        if self.suction is not None:
+            name_to_id(model, "actuator", self.suction)
+        return self
+
+    def home_q(self, model: mujoco.MjModel) -> np.ndarray:
+        """Positions (n,) of the joints in the home keyframe (the model's qpos0 without one)."""
+        qpos = model.qpos0 if self.home is None else model.key_qpos[name_to_id(model, "key", self.home)]
+        return qpos[arm_qpos_indices(model, self.joints)].copy()
+
+
+def _is_servo(model: mujoco.MjModel, a: int) -> bool:
+    """Whether actuator a is a position servo: force kp (ctrl - q) (- kv qdot), MJCF's <position>."""
+    kp = model.actuator_gainprm[a, 0]
+    return int(model.actuator_biastype[a]) == _BIAS_AFFINE and kp > 0 and model.actuator_biasprm[a, 1] == -kp
+
+
+def _servos_of(model: mujoco.MjModel, joints: Sequence[str]) -> tuple[str, ...]:
+    """The position servos of the joints, one per joint in order; () unless every joint has one."""
+    found = []
+    for joint in joints:
+        j = name_to_id(model, "joint", joint)
+        servos = [
+            a
+            for a in range(model.nu)
+            if int(model.actuator_trntype[a]) == _TRN_JOINT
+            and int(model.actuator_trnid[a, 0]) == j
+            and _is_servo(model, a)
+            and model.actuator(a).name
+        ]
+        if len(servos) != 1:
+            return ()
+        found.append(model.actuator(servos[0]).name)
+    return tuple(found)
+
+
+#: Built-in robots by name.
+ROBOTS: dict[str, Robot] = {
+    "ur5e": Robot(
+        name="ur5e",
+        model="ur5e",
+        joints=ur5e.JOINT_NAMES,
+        tcp=ur5e.TCP_SITE,
+        home=ur5e.HOME_KEY,
+        actuators=ur5e.JOINT_NAMES,  # each joint's servo carries the joint's name
+        suction=ur5e.SUCTION_ACTUATOR,
+    ),
+    # "panda": the Franka Emika Panda (issue 15), added with its model in tsrl/assets/panda.
+}
+
+
+def load_robot(robot: str | Path | Robot) -> Robot:
+    """A built-in robot by name (`ROBOTS`), a description from a TOML file, or `robot` itself.
+
+    Raises:
+        UnknownName: neither a built-in name nor an existing .toml file (the message lists the built-in
+            robots).
+        InvalidConfig: a TOML file with unknown or missing keys.
+    """
+    if isinstance(robot, Robot):
+        return robot
+    if isinstance(robot, str) and robot in ROBOTS:
+        return ROBOTS[robot]
+    path = Path(robot)
+    if path.suffix.lower() != ".toml" or not path.is_file():
+        raise UnknownName("robot", str(robot), [*ROBOTS, "<path of a .toml file>"])
+    with path.open("rb") as f:
+        try:
+            spec = tomllib.load(f)
+        except tomllib.TOMLDecodeError as err:
+            raise InvalidConfig(f"robot file {str(path)!r}: {err}") from None
+    return Robot.from_dict(spec.get("robot", spec), base=path.parent)

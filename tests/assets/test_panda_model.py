@@ -1,0 +1,163 @@
+"""Our Panda MJCF and scenes: names, published facts, the reachable goal box, the suction cup."""
+
+import itertools
+
+import mujoco
+import numpy as np
+import pytest
+
+from tsrl.assets import load_model
+from tsrl.assets.panda import (
+    BODY_NAMES,
+    GOAL_HALF_EXTENT,
+    HOME_Q,
+    HOME_TCP,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    LINK_COMS,
+    LINK_INERTIAS,
+    LINK_MASSES,
+    MAX_JOINT_TORQUES,
+)
+from tsrl.kinematics import name_to_id
+
+OBJ = mujoco.mjtObj
+NQ = len(JOINT_NAMES)
+
+
+@pytest.fixture(scope="module")
+def panda_reach_model():
+    return load_model("panda_reach")
+
+
+def cup_down_ik(model, data, goal, q0=HOME_Q, iterations=200):
+    """Joint angles putting the TCP at `goal` with the cup pointing down: damped least squares on
+    position and z-axis alignment, a null-space pull towards q0, steps clipped to the joint limits."""
+    tcp = name_to_id(model, "site", "tcp")
+    low, high = model.jnt_range[:NQ, 0] + 1e-6, model.jnt_range[:NQ, 1] - 1e-6
+    q, jac = np.array(q0, dtype=float), np.zeros((6, model.nv))
+    for _ in range(iterations):
+        data.qpos[:NQ] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], tcp)
+        z = data.site_xmat[tcp].reshape(3, 3)[:, 2]
+        error = np.concatenate([goal - data.site_xpos[tcp], np.cross(z, [0, 0, -1])])
+        J = jac[:, :NQ]
+        dq = J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(6), error)
+        dq += (np.eye(NQ) - np.linalg.pinv(J) @ J) @ (0.1 * (q0 - q))
+        q = np.clip(q + dq, low, high)
+    data.qpos[:NQ] = q
+    mujoco.mj_kinematics(model, data)
+    return q
+
+
+@pytest.mark.parametrize("scene", ["panda_reach", "panda_pick_place"])
+def test_scene_has_the_named_parts(scene):
+    model = load_model(scene)
+    for joint in JOINT_NAMES:
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_JOINT, joint) >= 0
+    for site in ("flange", "tcp", "target"):
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_SITE, site) >= 0
+    for geom in ("table", "suction_cup"):
+        assert mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, geom) >= 0
+    target = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "target")
+    assert model.body_mocapid[target] >= 0
+    assert model.body_geomnum[target] == 0  # the goal marker never collides
+    assert mujoco.mj_name2id(model, OBJ.mjOBJ_KEY, "home") >= 0
+
+
+def test_pick_place_has_a_free_4cm_box_resting_on_the_table():
+    model = load_model("panda_pick_place")
+    box = name_to_id(model, "body", "box")
+    assert int(model.jnt_type[model.body_jntadr[box]]) == int(mujoco.mjtJoint.mjJNT_FREE)
+    np.testing.assert_allclose(model.geom_size[name_to_id(model, "geom", "box")], [0.02, 0.02, 0.02])
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, name_to_id(model, "key", "home"))
+    for _ in range(250):  # half a second
+        mujoco.mj_step(model, data)
+    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)
+    np.testing.assert_allclose(data.qpos[:NQ], HOME_Q, atol=1e-6)  # the arm holds home meanwhile
+
+
+def test_link_masses_centres_of_mass_and_inertias_are_gaz_et_al():
+    model = load_model("panda")
+    for i, body in enumerate(BODY_NAMES):
+        b = name_to_id(model, "body", body)
+        assert model.body_mass[b] == pytest.approx(LINK_MASSES[i])
+        # Body i is DH frame i, in which Gaz et al. give the centre of mass and the inertia axes.
+        np.testing.assert_allclose(model.body_ipos[b], LINK_COMS[i], atol=1e-12)
+        xx, xy, xz, yy, yz, zz = LINK_INERTIAS[i]
+        published = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, model.body_iquat[b])
+        R = R.reshape(3, 3)
+        np.testing.assert_allclose(R @ np.diag(model.body_inertia[b]) @ R.T, published, atol=1e-9)
+
+
+def test_joint_limits_torques_and_servos():
+    model = load_model("panda_reach")
+    for i, name in enumerate(JOINT_NAMES):
+        j = name_to_id(model, "joint", name)
+        np.testing.assert_allclose(model.jnt_range[j], JOINT_LIMITS[i])
+        a = name_to_id(model, "actuator", name)
+        assert int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+        assert model.actuator_trnid[a, 0] == j
+        np.testing.assert_allclose(model.actuator_ctrlrange[a], JOINT_LIMITS[i])
+        np.testing.assert_allclose(
+            model.actuator_forcerange[a], [-MAX_JOINT_TORQUES[i], MAX_JOINT_TORQUES[i]]
+        )
+        assert model.jnt_actgravcomp[j]
+    suction = name_to_id(model, "actuator", "suction")
+    assert int(model.actuator_trntype[suction]) == int(mujoco.mjtTrn.mjTRN_BODY)
+    assert model.actuator_trnid[suction, 0] == name_to_id(model, "body", "suction_cup")
+
+
+def test_gravity_compensation_fits_in_the_torque_limits_everywhere(rng):
+    model = load_model("panda")
+    data = mujoco.MjData(model)
+    for q in rng.uniform(JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1], (200, NQ)):
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        assert np.all(np.abs(data.qfrc_gravcomp[:NQ]) < 0.7 * MAX_JOINT_TORQUES)
+
+
+def test_random_goals_in_the_box_are_reached_cup_down(panda_reach_model, rng):
+    model = panda_reach_model
+    data = mujoco.MjData(model)
+    tcp = name_to_id(model, "site", "tcp")
+    corners = [HOME_TCP + GOAL_HALF_EXTENT * np.array(s) for s in itertools.product((-1, 1), repeat=3)]
+    goals = corners + list(HOME_TCP + rng.uniform(-GOAL_HALF_EXTENT, GOAL_HALF_EXTENT, (100, 3)))
+    for goal in goals:
+        q = cup_down_ik(model, data, goal)
+        assert np.all(q >= JOINT_LIMITS[:, 0]) and np.all(q <= JOINT_LIMITS[:, 1])
+        np.testing.assert_allclose(data.site_xpos[tcp], goal, atol=1e-6, err_msg=f"goal {goal}")
+        np.testing.assert_allclose(data.site_xmat[tcp].reshape(3, 3)[:, 2], [0, 0, -1], atol=1e-6)
+
+
+@pytest.mark.parametrize("suction_on", [True, False])
+def test_suction_lifts_the_box_only_when_on(suction_on):
+    model = load_model("panda_pick_place")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, name_to_id(model, "key", "home"))
+    box = name_to_id(model, "body", "box")
+    mujoco.mj_forward(model, data)
+    box_xy = data.xpos[box][:2].copy()
+    scratch = mujoco.MjData(model)
+    scratch.qpos[:] = data.qpos
+    above = cup_down_ik(model, scratch, np.array([*box_xy, 0.10]))
+    contact = cup_down_ik(model, scratch, np.array([*box_xy, 0.038]), q0=above)  # 2 mm into the box top
+    data.qpos[:NQ] = above
+    suction = name_to_id(model, "actuator", "suction")
+
+    def move_to(q, seconds, suction_value):
+        data.ctrl[:NQ] = q
+        data.ctrl[suction] = suction_value
+        for _ in range(round(seconds / model.opt.timestep)):
+            mujoco.mj_step(model, data)
+
+    move_to(above, 0.3, 0.0)
+    move_to(contact, 0.5, 1.0 if suction_on else 0.0)
+    move_to(above, 0.8, 1.0 if suction_on else 0.0)
+    lifted = data.xpos[box][2] > 0.07
+    assert lifted == suction_on, f"box height {data.xpos[box][2]:.3f} m"
