@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
+from tsrl.agents.config import POLICY_INPUTS, AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
 from tsrl.experiments.aggregate import Curve, compare, sort_key, summarize, variants
 from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
@@ -31,7 +31,8 @@ learning_starts = 100
 @pytest.mark.parametrize(
     ("name", "runs", "budget"),
     [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000),
-     ("paper-observations-v2", 50, 6_000), ("action-ablation-v2", 20, 25_000)],
+     ("paper-observations-v2", 50, 6_000), ("action-ablation-v2", 20, 25_000), ("pose-features", 20, 50_000),
+     ("obstacle-features", 20, 15_000), ("pick-place-features", 30, 200_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)
@@ -40,13 +41,12 @@ def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     assert exp.name == name and len(configs) == runs
     assert len({c.run_name for c in configs}) == runs
     assert all(c.total_timesteps == budget and c.agent.algo == "ddpg" for c in configs)
-    if name.endswith("-v2"):  # the issue-16 study standard
+    if name.endswith(("-v2", "-features")):  # the issue-16 study standard, with the paper's HER
+        her = configs[0].agent.her
         assert len(exp.seeds) >= 10 and exp.eval_episodes >= 50 and exp.total_timesteps // exp.eval_freq >= 25
-        assert exp.comparisons and configs[0].agent.policy_inputs == ("observation", "desired_goal")
-        assert (configs[0].agent.her.strategy, configs[0].agent.her.n_sampled_goal) == (
-            "final",
-            1,
-        )  # the paper's HER
+        assert exp.comparisons and (her.strategy, her.n_sampled_goal) == ("final", 1)
+        inputs = ("observation", "desired_goal") if name != "pick-place-features" else POLICY_INPUTS
+        assert configs[0].agent.policy_inputs == inputs
 
 
 def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
