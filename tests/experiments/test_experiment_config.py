@@ -140,7 +140,6 @@ def _flat_curve(obs: str, levels: list[float]) -> Curve:
         seeds=tuple(range(len(levels))),
         eval_episodes=(50,),
         env_steps=steps,
-        episodes=steps / 50,
         success=np.repeat(np.array(levels)[:, None], 3, axis=1),
     )
 

@@ -149,9 +149,6 @@ class Curve:
     """Episodes per evaluation of the configuration's runs (distinct values)."""
     env_steps: np.ndarray
     """(m,) evaluation env steps common to all seeds."""
-    episodes: np.ndarray
-    """(m,) mean training episodes at those evaluations (the same for every seed with fixed-length
-    episodes)."""
     success: np.ndarray
     """(n seeds, m) evaluation success rates."""
 
@@ -184,7 +181,6 @@ def curves(rows: list[dict[str, Any]]) -> list[Curve]:
                 seeds=seeds,
                 eval_episodes=tuple(sorted({r["eval_episodes"] for s in seeds for r in runs[s].values()})),
                 env_steps=np.array(common, dtype=int),
-                episodes=np.array([np.mean([runs[s][t]["episodes"] for s in seeds]) for t in common]),
                 success=np.array([[runs[s][t]["eval_success_rate"] for t in common] for s in seeds]),
             )
         )
@@ -230,8 +226,8 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             pct = round(threshold * 100)
             for unit in ("env_steps", "episodes"):
                 times, reached = zip(*(time_to_threshold(run, threshold, unit) for run in runs), strict=True)
-                row[f"seeds_reaching_{pct}"] = sum(reached)
                 row[f"{unit}_to_{pct}_km_median"] = st.km_median(np.array(times), np.array(reached))
+            row[f"seeds_reaching_{pct}"] = sum(reached)
         row["wall_time_s_mean"] = float(np.mean([run[-1]["wall_time_s"] for run in runs]))
         summary.append(row)
     return summary
@@ -249,11 +245,12 @@ def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> lis
         for c in comparisons
         if all(arm in metrics and not np.isnan(metrics[arm][c.metric]).any() for arm in (c.a, c.b))
     ]
-    out = []
+    out, effects = [], []
     for c in present:
         x, y = metrics[c.a][c.metric], metrics[c.b][c.metric]
         effect = st.iqm_difference(x, y)
         poi = st.probability_of_improvement(x, y)
+        effects.append(effect)
         out.append(
             {
                 "a": c.a,
@@ -271,17 +268,13 @@ def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> lis
                 "p": st.mann_whitney_p(x, y, c.direction),
                 "mde": st.minimum_detectable_effect(float(effect.sd[0]), len(comparisons), c.direction),
                 "min_effect": math.nan if c.min_effect is None else c.min_effect,
-                "_effect": effect,
             }
         )
     # The family is every pre-registered comparison: one not computed yet counts as p = 1.
     family = st.holm([r["p"] for r in out] + [1.0] * (len(comparisons) - len(out)))
-    for row, p_holm in zip(out, family, strict=False):
-        min_effect = None if math.isnan(row["min_effect"]) else row["min_effect"]
+    for row, c, effect, p_holm in zip(out, present, effects, family, strict=False):
         row["p_holm"] = float(p_holm)
-        row["verdict"] = st.verdict(
-            row["a"], row["b"], row.pop("_effect"), row["p_holm"], row["mde"], row["direction"], min_effect
-        )
+        row["verdict"] = st.verdict(c.a, c.b, effect, row["p_holm"], row["mde"], c.direction, c.min_effect)
     return out
 
 
