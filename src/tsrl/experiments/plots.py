@@ -4,6 +4,7 @@ AUC performance profile. Observation presets get the paper's colours, in its Tab
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,6 +26,9 @@ PAPER_COLOURS: dict[str, str] = {
     "fs1": "#6baed6",  # light blue
     "fs2": "tab:grey",
 }
+
+#: Legend entries (spec strings can be long) wrap at this many characters.
+LEGEND_WIDTH = 60
 
 
 def colours(curves: list[Curve]) -> list[str]:
@@ -70,14 +74,15 @@ def plot_curves(curves: list[Curve], out: Path, name: str | None = None) -> Path
             ax.plot(xs, seed_curve, color=colour, linewidth=0.5, alpha=0.3)
         est = curve.stats()
         n = len(curve.seeds)
-        ax.plot(xs, est.point, color=colour, linewidth=2, label=f"{label} ({n} seed{'s' if n > 1 else ''})")
+        legend = textwrap.fill(f"{label} ({n} seed{'s' if n > 1 else ''})", LEGEND_WIDTH)
+        ax.plot(xs, est.point, color=colour, linewidth=2, label=legend)
         if n > 1:
             ax.fill_between(xs, est.low, est.high, color=colour, alpha=0.2, linewidth=0)
     for threshold in THRESHOLDS:
         ax.axhline(threshold, color="black", linestyle="--", linewidth=0.7, alpha=0.5)
     title = f"{describe(curves)}\nIQM across seeds, 95% stratified-bootstrap interval; thin: seeds"
     return save_success_plot(
-        fig, ax, out, xlabel="env steps", title=f"{name}: {title}" if name else title, fontsize=9
+        fig, ax, out, xlabel="env steps", title=f"{name}\n{title}" if name else title, fontsize=9
     )
 
 
@@ -93,7 +98,7 @@ def plot_profile(
 
     fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=120)
     for (label, est), colour in zip(profile.items(), colours(curves), strict=True):
-        ax.plot(taus, est.point, color=colour, linewidth=2, label=label)
+        ax.plot(taus, est.point, color=colour, linewidth=2, label=textwrap.fill(label, LEGEND_WIDTH))
         ax.fill_between(taus, est.low, est.high, color=colour, alpha=0.2, linewidth=0)
     ax.set_xlabel("AUC threshold tau (normalised area under the success curve)")
     ax.set_ylabel("fraction of seeds with AUC > tau")
@@ -101,7 +106,7 @@ def plot_profile(
     ax.grid(alpha=0.3)
     ax.legend(loc="lower left", fontsize=8)
     ax.set_title(
-        f"{name}: {describe(curves)}\nAUC performance profile, 95% stratified-bootstrap interval", fontsize=9
+        f"{name}\n{describe(curves)}\nAUC performance profile, 95% stratified-bootstrap interval", fontsize=9
     )
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
