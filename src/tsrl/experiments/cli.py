@@ -60,9 +60,11 @@ def add_experiment_commands(commands: Any) -> None:
         "report",
         help="aggregate an experiment's runs: results.csv, summary.csv, summary.md, learning curves",
         description="Aggregates the run folders in RESULTS_DIR (e.g. results/quick-reach) into results.csv "
-        "(one row per run and evaluation), summary.csv and summary.md (per configuration: episodes and env "
-        "steps to 50% and 90% success, final success, 95% bootstrap intervals across seeds) and "
-        "learning_curves_episodes.png / learning_curves_steps.png.",
+        "(one row per run and evaluation), summary.csv and summary.md (per configuration: IQM across seeds "
+        "of the area under the success curve and of final success with 95% stratified-bootstrap intervals, "
+        "Kaplan-Meier env steps to 50% and 90% success), comparisons.csv (the experiment's pre-registered "
+        "comparisons: effect, interval, Holm-adjusted p, power, verdict), learning_curves.png and "
+        "performance_profile.png.",
     )
     p_report.add_argument(
         "results_dir", type=Path, metavar="RESULTS_DIR", help="an experiment's results folder"
