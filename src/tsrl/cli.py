@@ -156,7 +156,7 @@ class Render:
 
 @dataclass(frozen=True)
 class Plot:
-    """Learning curves (eval success vs env steps) of run folders."""
+    """Learning curves (eval success vs env steps; IQM across seeds, as tsrl report) of run folders."""
 
     run_dirs: Positional[Annotated[tuple[Path, ...], arg(metavar="RUN_DIR")]]
     """Run folders written by `tsrl train`."""
@@ -168,11 +168,11 @@ class Plot:
             raise InvalidConfig("tsrl plot needs at least one RUN_DIR")
 
     def run(self) -> int:
-        from .agents.plotting import plot_learning_curves
+        from .experiments.aggregate import plot_runs
 
         for run_dir in self.run_dirs:
             load_config(run_dir)  # a clear error for a folder that is not a run
-        print(f"wrote {plot_learning_curves(self.run_dirs, self.out)}")
+        print(f"wrote {plot_runs(self.run_dirs, self.out)}")
         return 0
 
 

@@ -3,15 +3,17 @@ an error naming the bad field, the summary's statistics follow their stated rule
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
+from tsrl.agents.config import POLICY_INPUTS, AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
-from tsrl.experiments.aggregate import bootstrap_mean_ci, summarize, variants
-from tsrl.experiments.config import load_experiment, resolve_experiment
+from tsrl.experiments.aggregate import Curve, compare, sort_key, summarize, variants
+from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
 
 REPO = Path(__file__).resolve().parents[2]
 GOOD = """
@@ -28,7 +30,9 @@ learning_starts = 100
 
 @pytest.mark.parametrize(
     ("name", "runs", "budget"),
-    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000)],
+    [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000),
+     ("paper-observations-v2", 50, 6_000), ("action-ablation-v2", 20, 25_000), ("pose-features", 20, 50_000),
+     ("obstacle-features", 20, 15_000), ("pick-place-features", 30, 200_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)
@@ -37,6 +41,12 @@ def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     assert exp.name == name and len(configs) == runs
     assert len({c.run_name for c in configs}) == runs
     assert all(c.total_timesteps == budget and c.agent.algo == "ddpg" for c in configs)
+    if name.endswith(("-v2", "-features")):  # the issue-16 study standard, with the paper's HER
+        her = configs[0].agent.her
+        assert len(exp.seeds) >= 10 and exp.eval_episodes >= 50 and exp.total_timesteps // exp.eval_freq >= 25
+        assert exp.comparisons and (her.strategy, her.n_sampled_goal) == ("final", 1)
+        inputs = ("observation", "desired_goal") if name != "pick-place-features" else POLICY_INPUTS
+        assert configs[0].agent.policy_inputs == inputs
 
 
 def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
@@ -91,45 +101,127 @@ def test_unknown_name_lists_the_known_experiments(monkeypatch):
         resolve_experiment("no/such.toml")
 
 
-def test_bootstrap_interval_is_seeded_and_brackets_the_mean():
-    values = np.array([0.2, 0.5, 0.6, 0.9, 1.0])
-    mean, low, high = bootstrap_mean_ci(values)
-    assert mean == pytest.approx(0.64) and low < mean < high
-    assert 0.2 <= low and high <= 1.0
-    assert bootstrap_mean_ci(values) == (mean, low, high)  # same data, same interval
-    assert bootstrap_mean_ci(np.array([0.7]))[1:] == (0.7, 0.7)  # one seed: no spread to estimate
-    columns = bootstrap_mean_ci(np.array([[0.0, 1.0], [0.0, 1.0]]))
-    np.testing.assert_array_equal(columns[1], [0.0, 1.0])
-
-
 def _rows(seed: int, success: list[float], obs: str = "fs1") -> list[dict]:
     return [
         {"env": "tsrl/UR5eReach-v0", "obs": obs, "action": "taskspace", "algo": "ddpg", "variant": "", "seed": seed,
-         "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
+         "eval_episodes": 20, "env_steps": 500 * i, "episodes": 10 * i, "wall_time_s": 5.0 * i, "eval_success_rate": s}
         for i, s in enumerate(success)
     ]  # fmt: skip
 
 
-def test_summary_thresholds_count_reaching_seeds_and_average_over_them():
+def test_summary_censors_seeds_that_never_reach_a_threshold():
     rows = (
         _rows(0, [0.0, 0.6, 0.95, 1.0, 1.0])  # 50% at 500 steps, 90% at 1000
         + _rows(1, [0.0, 0.2, 0.55, 0.95, 0.9])  # 50% at 1000, 90% at 1500
-        + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never
+        + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never: censored at 2000
         + _rows(0, [0.0, 0.0, 0.0, 0.0, 0.0], obs="baseline")
     )
-    fs1, baseline = summarize(rows)
+    baseline, fs1 = summarize(sorted(rows, key=sort_key))  # Table I order
     assert (fs1["obs"], fs1["seeds"], fs1["final_env_steps"], fs1["final_evals"]) == ("fs1", 3, 2000, 3)
-    assert fs1["seeds_reaching_50"] == 2 and fs1["seeds_reaching_90"] == 2
-    assert fs1["env_steps_to_50_mean"] == 750 and fs1["episodes_to_90_mean"] == 25
-    assert fs1["env_steps_to_50_ci_low"] >= 500 and fs1["env_steps_to_50_ci_high"] <= 1000
+    assert (fs1["evaluations"], fs1["eval_episodes"]) == (5, "20")
+    # Kaplan-Meier, 50%: S = 2/3 at 500, 1/3 at 1000 -> 1000 (the mean over reaching seeds said 750).
+    assert fs1["seeds_reaching_50"] == 2 and fs1["env_steps_to_50_km_median"] == 1000
+    assert fs1["seeds_reaching_90"] == 2 and fs1["env_steps_to_90_km_median"] == 1500
+    assert fs1["episodes_to_90_km_median"] == 30
+    # AUC: trapezoids of 500 steps over 2000: 1525 / 2000, 1075 / 2000, 400 / 2000; IQM of 3 = mean.
+    assert fs1["auc_iqm"] == pytest.approx((0.7625 + 0.5375 + 0.2) / 3)
+    assert fs1["auc_ci_low"] <= fs1["auc_iqm"] <= fs1["auc_ci_high"]
     finals = [np.mean([0.95, 1.0, 1.0]), np.mean([0.55, 0.95, 0.9]), np.mean([0.2, 0.3, 0.4])]
-    assert fs1["final_success_mean"] == pytest.approx(np.mean(finals))
-    assert fs1["final_success_ci_low"] <= fs1["final_success_mean"] <= fs1["final_success_ci_high"]
-    assert baseline["seeds_reaching_50"] == 0 and np.isnan(baseline["env_steps_to_50_mean"])
+    assert fs1["final_success_iqm"] == pytest.approx(np.mean(finals))
+    assert baseline["seeds_reaching_50"] == 0 and baseline["env_steps_to_50_km_median"] == math.inf
     assert baseline["wall_time_s_mean"] == 20.0
+
+
+def _flat_curve(obs: str, levels: list[float]) -> Curve:
+    """Seeds whose success stays at one level: AUC and final success equal that level."""
+    steps = np.array([0, 500, 1000])
+    return Curve(
+        key=("tsrl/UR5eReach-v0", obs, "taskspace", "ddpg", ""),
+        seeds=tuple(range(len(levels))),
+        eval_episodes=(50,),
+        env_steps=steps,
+        success=np.repeat(np.array(levels)[:, None], 3, axis=1),
+    )
+
+
+def test_comparisons_report_effect_poi_holm_power_and_verdict():
+    arms = [_flat_curve("fs1", [0.9, 0.7, 0.8]), _flat_curve("baseline", [0.1, 0.3, 0.2])]
+    registered = (
+        Comparison(a="fs1", b="baseline", metric="auc", direction="greater", min_effect=0.1),
+        Comparison(a="baseline", b="fs1", metric="final_success", direction="greater"),
+        Comparison(a="fs0", b="fs1"),  # no fs0 runs: counts in Holm's family as p = 1
+        Comparison(a="fs2", b="fs1"),  # fs2 has one evaluation: no AUC, not computed, p = 1 in the family
+    )
+    one_eval = _flat_curve("fs2", [0.5, 0.6, 0.7])
+    one_eval = dataclasses.replace(
+        one_eval, env_steps=one_eval.env_steps[:1], success=one_eval.success[:, :1]
+    )
+    auc, final = compare([*arms, one_eval], registered)
+    assert (auc["a"], auc["b"], auc["seeds_a"], auc["seeds_b"]) == ("fs1", "baseline", 3, 3)
+    assert auc["effect"] == pytest.approx(0.6) and auc["effect_ci_low"] <= 0.6 <= auc["effect_ci_high"]
+    assert auc["poi"] == 1.0
+    # All three fs1 seeds above all three baseline seeds: one of C(6, 3) = 20 orderings -> p = 0.05;
+    # Holm over four comparisons: 4 * 0.05 = 0.2. Three seeds cannot be detected at 0.05.
+    assert auc["p"] == pytest.approx(0.05) and auc["p_holm"] == pytest.approx(0.2)
+    assert auc["verdict"].startswith("no detectable difference at this power")
+    assert final["p"] == pytest.approx(1.0) and final["p_holm"] == 1.0 and final["poi"] == 0.0
+    assert auc["mde"] > 0
 
 
 def test_variants_name_only_the_settings_that_differ():
     plain = TrainConfig(agent=AgentConfig(her=HerConfig(relabel="plain")), total_timesteps=99)
     assert variants([TrainConfig(seed=0), TrainConfig(seed=1, checkpoint_freq=7)]) == ["", ""]
     assert variants([TrainConfig(), plain]) == ["agent.her.relabel=feature", "agent.her.relabel=plain"]
+
+
+COMPARED = """
+obs = ["fs1", "baseline"]
+[[comparisons]]
+a = "fs1"
+b = "baseline"
+metric = "auc"
+direction = "greater"
+min_effect = 0.05
+[[comparisons]]
+a = "baseline"
+b = "fs1"
+metric = "final_success"
+"""
+
+
+def test_comparisons_are_parsed_with_their_defaults(tmp_path):
+    path = tmp_path / "compared.toml"
+    path.write_text(COMPARED)
+    exp = load_experiment(path, check_envs=False)
+    assert exp.arms() == ["fs1", "baseline"]
+    assert exp.comparisons == (
+        Comparison(a="fs1", b="baseline", metric="auc", direction="greater", min_effect=0.05),
+        Comparison(a="baseline", b="fs1", metric="final_success", direction="greater", min_effect=None),
+    )
+    assert exp.to_dict()["comparisons"][0]["min_effect"] == 0.05  # goes to experiment.json for the report
+
+
+@pytest.mark.parametrize(
+    ("table", "expected"),
+    [
+        ('a = "fs9"\nb = "fs1"', "comparison 1: unknown arm 'fs9'; accepted: fs1, baseline"),
+        ('a = "fs1"\nb = "fs1"', "comparison 1: compares arm 'fs1' with itself"),
+        ('a = "fs1"', "comparison 1: missing b"),
+        ('a = "fs1"\nb = "baseline"\nmetric = "steps"', "unknown metric 'steps'; accepted: auc, final_success"),
+        ('a = "fs1"\nb = "baseline"\ndirection = "up"', "unknown direction 'up'; accepted: greater, less, two-sided"),
+        ('a = "fs1"\nb = "baseline"\nmin_effect = -1', "min_effect must be a number > 0; got -1"),
+        ('a = "fs1"\nb = "baseline"\nalpha = 0.1', "unknown Comparison keys ['alpha']; accepted: a, b, metric"),
+    ],
+)  # fmt: skip
+def test_bad_comparison_is_one_line_naming_the_accepted_values(table, expected, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(f'obs = ["fs1", "baseline"]\n[[comparisons]]\n{table}\n')
+    with pytest.raises(InvalidConfig) as err:
+        load_experiment(path, check_envs=False)
+    assert str(err.value).startswith(f"{path}: ") and "\n" not in str(err.value)
+    assert expected in str(err.value)
+
+
+def test_arms_name_only_what_varies():
+    exp = ExperimentConfig(name="x", obs=("fs1",), action=("taskspace", "joint"), algo=("ddpg", "sac"))
+    assert exp.arms() == ["taskspace / ddpg", "taskspace / sac", "joint / ddpg", "joint / sac"]

@@ -23,7 +23,7 @@ from cli_runner import run_tsrl
 
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
-from tsrl.experiments.config import load_experiment
+from tsrl.experiments.config import Comparison, load_experiment
 from tsrl.experiments.pool import run_experiment
 
 TINY = """
@@ -105,9 +105,13 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
     assert stamps == {d: (d / "progress.csv").stat().st_mtime_ns for d in stamps}
 
     # 4. The report: tidy CSV, summary, learning curves, Markdown embedding them; the failed run named.
+    # (as if the file registered a comparison: `tsrl experiment` writes it into experiment.json)
+    info = json.loads((exp_dir / "experiment.json").read_text())
+    info["comparisons"] = [dataclasses.asdict(Comparison(a="fs1", b="baseline"))]
+    (exp_dir / "experiment.json").write_text(json.dumps(info))
     paths = write_report(exp_dir)
-    assert {p.name for p in paths} == {"results.csv", "summary.csv", "summary.md",
-                                       "learning_curves_episodes.png", "learning_curves_steps.png"}  # fmt: skip
+    assert {p.name for p in paths} == {"results.csv", "summary.csv", "summary.md", "learning_curves.png",
+                                       "performance_profile.png", "comparisons.csv"}  # fmt: skip
     with open(exp_dir / "results.csv", newline="") as f:
         reader = csv.DictReader(f)
         rows = list(reader)
@@ -115,16 +119,22 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
     assert {(r["obs"], r["seed"]) for r in rows} == {("fs1", "0"), ("fs1", "1"), ("baseline", "0")}
     with open(exp_dir / "summary.csv", newline="") as f:
         summary = list(csv.DictReader(f))
-    assert [(r["obs"], r["seeds"], r["final_env_steps"]) for r in summary] == [
-        ("baseline", "1", "300"),
-        ("fs1", "2", "300"),
+    assert [(r["obs"], r["seeds"], r["final_env_steps"], r["eval_episodes"]) for r in summary] == [
+        ("baseline", "1", "300", "2"),
+        ("fs1", "2", "300", "2"),
     ]
-    for png in ("learning_curves_episodes.png", "learning_curves_steps.png"):
+    for png in ("learning_curves.png", "performance_profile.png"):
         assert (exp_dir / png).read_bytes()[:4] == b"\x89PNG" and (exp_dir / png).stat().st_size > 10_000
     md = (exp_dir / "summary.md").read_text()
-    assert "](learning_curves_episodes.png)" in md and "](learning_curves_steps.png)" in md
-    assert "| fs1 | 2 |" in md and "| baseline | 1 |" in md and "bootstrap" in md
+    assert "](learning_curves.png)" in md and "](performance_profile.png)" in md
+    assert "| fs1 > baseline | auc | 2/1 |" in md and "p (Holm)" in md
+    assert "| fs1 | 2 | 2 |" in md and "| baseline | 1 | 2 |" in md and "stratified bootstrap" in md
     assert f"Failed runs (error.txt in their folders): {baseline_s1.name}" in md
+
+    # 5. `tsrl plot` of run folders: the same statistics as the report.
+    result = run_tsrl("plot", str(fs1_s0), str(fs1_s1), str(baseline_s0), "--out", str(tmp_path / "runs.png"))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "runs.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_experiment_on_a_local_ray_instance(tmp_path):
@@ -157,7 +167,8 @@ def test_experiment_on_a_local_ray_instance(tmp_path):
     [
         (
             ["experiment", "no-such-experiment"],
-            "known: action-ablation, paper-observations, pick-place, quick-reach",
+            "known: action-ablation, action-ablation-v2, obstacle-features, paper-observations, "
+            + "paper-observations-v2, pick-place, pick-place-features, pose-features, quick-reach",
         ),
         (["experiment", "quick-reach", "--workers", "0"], "--workers must be >= 1"),
         (["experiment", "BAD"], "unknown key 'seed'; accepted: description"),

@@ -28,6 +28,8 @@ HerStrategy = Literal["future", "final", "episode"]
 ALGOS: tuple[str, ...] = typing.get_args(Algo)
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
 HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
+#: Keys of a goal environment's observation dict that the networks may see (AgentConfig.policy_inputs).
+POLICY_INPUTS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 #: `obs` / `action` value for environments that are not tsrl's (e.g. FetchReach-v4 in benchmarks).
 NATIVE = "native"
 
@@ -90,6 +92,9 @@ class AgentConfig:
     """Off-policy algorithm, always combined with HER (paper: DDPG)."""
     net_arch: tuple[int, ...] = (256, 256)
     """Hidden layers of actor and critic MLPs (paper: [256, 256])."""
+    policy_inputs: tuple[str, ...] = POLICY_INPUTS
+    """Keys of the observation dict that actor and critic see: any of observation, achieved_goal,
+    desired_goal (default: all three). HER relabelling and normalisation still use every key."""
     learning_rate: float = 1e-3
     """Adam learning rate of actor and critic (paper: 0.001 for both)."""
     train_freq_episodes: int = 2
@@ -130,6 +135,14 @@ class AgentConfig:
         ):
             raise InvalidConfig(
                 f"net_arch must be positive layer widths, e.g. 256 256; got {self.net_arch!r}"
+            )
+        object.__setattr__(self, "policy_inputs", tuple(self.policy_inputs))
+        for key in self.policy_inputs:
+            _choice("policy input", key, POLICY_INPUTS)
+        if not self.policy_inputs or len(set(self.policy_inputs)) < len(self.policy_inputs):
+            raise InvalidConfig(
+                f"policy_inputs must name each of {', '.join(POLICY_INPUTS)} at most once, at least one; "
+                f"got {self.policy_inputs!r}"
             )
         for name in ("learning_rate", "train_freq_episodes", "batch_size", "buffer_size", "clip_obs"):
             _positive(name, getattr(self, name))

@@ -12,9 +12,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import stable_baselines3
+from gymnasium import spaces
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.torch_layers import CombinedExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
@@ -27,6 +29,16 @@ ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
 }
 #: Keys normalised by VecNormalize (all of a goal environment's observation dict).
 NORM_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
+
+
+class PolicyInputs(CombinedExtractor):
+    """stable-baselines3's CombinedExtractor over the selected keys of the observation dict only: the
+    networks see `keys` (flattened, concatenated in the Dict space's sorted key order), the rest of
+    the dict (still stored, relabelled and normalised) never reaches them. With every key it is
+    CombinedExtractor itself."""
+
+    def __init__(self, observation_space: spaces.Dict, keys: tuple[str, ...]):
+        super().__init__(spaces.Dict({k: observation_space[k] for k in keys}))
 
 
 def make_env(cfg: TrainConfig, render_mode: str | None = None, **kwargs: Any) -> gym.Env:
@@ -89,7 +101,11 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
             "goal_selection_strategy": a.her.strategy,
             "relabel_features": a.her.relabel == "feature",
         },
-        "policy_kwargs": {"net_arch": list(a.net_arch)},
+        "policy_kwargs": {
+            "net_arch": list(a.net_arch),
+            "features_extractor_class": PolicyInputs,
+            "features_extractor_kwargs": {"keys": a.policy_inputs},
+        },
         "tensorboard_log": tensorboard_log,
         "seed": cfg.seed,
         "device": "cpu",

@@ -1,16 +1,19 @@
-"""Aggregates an experiment's run folders: tidy results, per-configuration statistics, the report.
+"""Aggregates an experiment's run folders: tidy results, per-configuration statistics, the pre-registered
+comparisons, the report. Statistics across seeds come from tsrl.experiments.statistics (rliable):
 
-A configuration is (env, obs, action, algo); its runs differ by seed. Statistics across seeds use a
-seeded percentile bootstrap of the mean (BOOTSTRAP_RESAMPLES resamples of the seeds with
-replacement; the interval holds the middle 95% of the resampled means):
-
-- learning curves: mean success rate and its 95% interval at each evaluation that every seed of the
-  configuration has reached (a seed still running shortens its configuration's curve);
-- final success: per seed, the mean of the last FINAL_EVALS of those common evaluations;
-- episodes / env steps to a threshold (50%, 90%): per seed, the first evaluation whose success rate is
-  at or above it. A seed that never reaches it within its budget is *not* given a value: the summary
-  reports how many seeds reached it (k of n) and the mean and interval over those k only, which is
-  optimistic when k < n; docs/experiments.md says more.
+- learning curves: the interquartile mean (IQM) of the seeds' success rates and its 95%
+  stratified-bootstrap interval at each evaluation that every seed of the configuration has reached (a
+  seed still running shortens its configuration's curve);
+- AUC (sample efficiency, the primary metric): per seed, the area under its success curve over those
+  evaluations, normalised by their span of env steps to [0, 1]; then IQM and interval across seeds;
+- final success: per seed, the mean of the last FINAL_EVALS of those evaluations; IQM and interval;
+- env steps / episodes to a threshold (50%, 90%): per seed, the first evaluation at or above it; a seed
+  that never gets there is censored at its last evaluation, and the Kaplan-Meier median is reported
+  with the number of seeds that reached it (k of n); inf when fewer than half are known to have;
+- comparisons (the experiment file's [[comparisons]]): IQM(a) - IQM(b) of a per-seed metric with its
+  interval, the probability of improvement P(a > b) with its interval, a Mann-Whitney U test on the
+  registered side, Holm's correction over the experiment's comparisons, the minimum detectable effect
+  and a verdict (statistics.verdict).
 """
 
 from __future__ import annotations
@@ -28,9 +31,12 @@ import numpy as np
 from ..agents.config import TrainConfig
 from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..exceptions import InvalidConfig, TsrlError
-from .config import EXPERIMENT_FILE, Key, config_labels
-from .plots import plot_curves
+from ..taskmaps import OBS_PRESETS
+from . import statistics as st
+from .config import EXPERIMENT_FILE, Comparison, Key, config_labels
+from .plots import plot_curves, plot_profile
 from .runner import ERROR_FILE
+from .statistics import THRESHOLDS
 
 RESULT_COLUMNS: tuple[str, ...] = (
     "env",
@@ -39,20 +45,21 @@ RESULT_COLUMNS: tuple[str, ...] = (
     "algo",
     "variant",
     "seed",
+    "eval_episodes",
     "env_steps",
     "episodes",
     "wall_time_s",
     "eval_success_rate",
 )
-THRESHOLDS: tuple[float, ...] = (0.5, 0.9)
 FINAL_EVALS = 3
-BOOTSTRAP_RESAMPLES = 10_000
-BOOTSTRAP_SEED = 0
 RESULTS_CSV = "results.csv"
 SUMMARY_CSV = "summary.csv"
+COMPARISONS_CSV = "comparisons.csv"
 SUMMARY_MD = "summary.md"
-CURVES_EPISODES = "learning_curves_episodes.png"
-CURVES_STEPS = "learning_curves_steps.png"
+CURVES_PNG = "learning_curves.png"
+PROFILE_PNG = "performance_profile.png"
+#: Thresholds of the AUC performance profile.
+PROFILE_TAUS = np.linspace(0.0, 1.0, 51)
 
 
 def find_runs(results_dir: Path) -> list[Path]:
@@ -116,6 +123,7 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
                     "algo": cfg.agent.algo,
                     "variant": variant,
                     "seed": cfg.seed,
+                    "eval_episodes": cfg.eval_episodes,
                     "env_steps": int(r["env_steps"]),
                     "episodes": int(r["episodes"]),
                     "wall_time_s": r["wall_time_s"],
@@ -125,23 +133,12 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
     return rows
 
 
-def bootstrap_mean_ci(
-    values: np.ndarray, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTSTRAP_SEED
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean over axis 0 (seeds) and its 95% percentile-bootstrap interval, for every column.
-
-    values (n,) or (n, m) -> mean, low, high of shape () or (m,). Seeded: the same data give the same
-    interval. With one seed the interval is that value (no spread can be estimated).
-    """
-    values = np.asarray(values, dtype=float)
-    n = values.shape[0]
-    mean = values.mean(axis=0)
-    if n < 2:
-        return mean, mean.copy(), mean.copy()
-    idx = np.random.default_rng(seed).integers(0, n, size=(resamples, n))
-    means = values[idx].mean(axis=1)
-    low, high = np.percentile(means, [2.5, 97.5], axis=0)
-    return mean, low, high
+def sort_key(row: dict[str, Any]) -> tuple[Any, ...]:
+    """Orders rows by configuration, observation presets in the paper's Table I order, then seed and
+    env steps."""
+    presets = list(OBS_PRESETS)
+    rank = presets.index(row["obs"]) if row["obs"] in presets else len(presets)
+    return (row["env"], rank, *row_key(row)[1:], row["seed"], row["env_steps"])
 
 
 @dataclass(frozen=True)
@@ -150,17 +147,25 @@ class Curve:
 
     key: Key
     seeds: tuple[int, ...]
+    eval_episodes: tuple[int, ...]
+    """Episodes per evaluation of the configuration's runs (distinct values)."""
     env_steps: np.ndarray
     """(m,) evaluation env steps common to all seeds."""
-    episodes: np.ndarray
-    """(m,) mean training episodes at those evaluations (the same for every seed with fixed-length
-    episodes)."""
     success: np.ndarray
     """(n seeds, m) evaluation success rates."""
 
-    def stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Mean and 95% bootstrap interval across seeds at each evaluation."""
-        return bootstrap_mean_ci(self.success)
+    def stats(self) -> st.Estimate:
+        """IQM across seeds and its 95% stratified-bootstrap interval at each evaluation."""
+        return st.iqm_interval(self.success)
+
+    def seed_metrics(self) -> dict[str, np.ndarray]:
+        """Per seed (n,): each of COMPARISON_METRICS (NaN AUC with a single evaluation)."""
+        auc = (
+            st.area_under_curve(self.env_steps, self.success)
+            if len(self.env_steps) > 1
+            else np.full(len(self.seeds), math.nan)
+        )
+        return {"auc": auc, "final_success": self.success[:, -FINAL_EVALS:].mean(axis=1)}
 
 
 def curves(rows: list[dict[str, Any]]) -> list[Curve]:
@@ -176,20 +181,21 @@ def curves(rows: list[dict[str, Any]]) -> list[Curve]:
             Curve(
                 key=key,
                 seeds=seeds,
+                eval_episodes=tuple(sorted({r["eval_episodes"] for s in seeds for r in runs[s].values()})),
                 env_steps=np.array(common, dtype=int),
-                episodes=np.array([np.mean([runs[s][t]["episodes"] for s in seeds]) for t in common]),
                 success=np.array([[runs[s][t]["eval_success_rate"] for t in common] for s in seeds]),
             )
         )
     return out
 
 
-def first_reaching(rows: list[dict[str, Any]], threshold: float) -> dict[str, float] | None:
-    """The first evaluation of one run (rows sorted by env steps) at or above `threshold`, or None."""
-    for r in rows:
+def time_to_threshold(run: list[dict[str, Any]], threshold: float, unit: str) -> tuple[float, bool]:
+    """(time, reached) of one run (rows sorted by env steps) in `unit` (env_steps or episodes): its
+    first evaluation at or above `threshold`, or its last evaluation, censored, if none is."""
+    for r in run:
         if r["eval_success_rate"] >= threshold:
-            return {"episodes": r["episodes"], "env_steps": r["env_steps"]}
-    return None
+            return float(r[unit]), True
+    return float(run[-1][unit]), False
 
 
 def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -201,8 +207,6 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     for curve in curves(rows):
         env, obs, action, algo, variant = curve.key
         runs = [sorted(per_run[curve.key, s], key=lambda r: r["env_steps"]) for s in curve.seeds]
-        last = curve.success[:, -FINAL_EVALS:]
-        final, final_lo, final_hi = bootstrap_mean_ci(last.mean(axis=1))
         row: dict[str, Any] = {
             "env": env,
             "obs": obs,
@@ -210,25 +214,70 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "algo": algo,
             "variant": variant,
             "seeds": len(curve.seeds),
+            "eval_episodes": "/".join(map(str, curve.eval_episodes)),
+            "evaluations": len(curve.env_steps),
             "final_env_steps": int(curve.env_steps[-1]),
-            "final_evals": last.shape[1],
-            "final_success_mean": float(final),
-            "final_success_ci_low": float(final_lo),
-            "final_success_ci_high": float(final_hi),
+            "final_evals": min(FINAL_EVALS, len(curve.env_steps)),
         }
+        for metric, values in curve.seed_metrics().items():
+            est = st.iqm_interval(values) if not np.isnan(values).any() else None
+            for part in ("point", "low", "high"):
+                column = f"{metric}_{'iqm' if part == 'point' else f'ci_{part}'}"
+                row[column] = float(getattr(est, part)[0]) if est else math.nan
         for threshold in THRESHOLDS:
             pct = round(threshold * 100)
-            hits = [h for h in (first_reaching(run, threshold) for run in runs) if h is not None]
-            row[f"seeds_reaching_{pct}"] = len(hits)
-            for unit in ("episodes", "env_steps"):
-                values = np.array([h[unit] for h in hits], dtype=float)
-                mean, lo, hi = bootstrap_mean_ci(values) if len(values) else (math.nan,) * 3
-                row[f"{unit}_to_{pct}_mean"] = float(mean)
-                row[f"{unit}_to_{pct}_ci_low"] = float(lo)
-                row[f"{unit}_to_{pct}_ci_high"] = float(hi)
+            for unit in ("env_steps", "episodes"):
+                times, reached = zip(*(time_to_threshold(run, threshold, unit) for run in runs), strict=True)
+                row[f"{unit}_to_{pct}_km_median"] = st.km_median(np.array(times), np.array(reached))
+            row[f"seeds_reaching_{pct}"] = sum(reached)
         row["wall_time_s_mean"] = float(np.mean([run[-1]["wall_time_s"] for run in runs]))
         summary.append(row)
     return summary
+
+
+def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> list[dict[str, Any]]:
+    """One row per comparison whose two arms are both in `all_curves` (labelled by config_labels) with
+    a value for every seed (AUC needs two evaluations):
+    effect IQM(a) - IQM(b) and P(a > b) with intervals, Mann-Whitney p on the registered side, Holm's
+    adjustment over all of `comparisons`, minimum detectable effect and verdict."""
+    by_label = dict(zip(config_labels([c.key for c in all_curves]), all_curves, strict=True))
+    metrics = {label: curve.seed_metrics() for label, curve in by_label.items()}
+    present = [
+        c
+        for c in comparisons
+        if all(arm in metrics and not np.isnan(metrics[arm][c.metric]).any() for arm in (c.a, c.b))
+    ]
+    out, effects = [], []
+    for c in present:
+        x, y = metrics[c.a][c.metric], metrics[c.b][c.metric]
+        effect = st.iqm_difference(x, y)
+        poi = st.probability_of_improvement(x, y)
+        effects.append(effect)
+        out.append(
+            {
+                "a": c.a,
+                "b": c.b,
+                "metric": c.metric,
+                "direction": c.direction,
+                "seeds_a": len(x),
+                "seeds_b": len(y),
+                "effect": float(effect.point[0]),
+                "effect_ci_low": float(effect.low[0]),
+                "effect_ci_high": float(effect.high[0]),
+                "poi": float(poi.point[0]),
+                "poi_ci_low": float(poi.low[0]),
+                "poi_ci_high": float(poi.high[0]),
+                "p": st.mann_whitney_p(x, y, c.direction),
+                "mde": st.minimum_detectable_effect(float(effect.sd[0]), len(comparisons), c.direction),
+                "min_effect": math.nan if c.min_effect is None else c.min_effect,
+            }
+        )
+    # The family is every pre-registered comparison: one not computed yet counts as p = 1.
+    family = st.holm([r["p"] for r in out] + [1.0] * (len(comparisons) - len(out)))
+    for row, c, effect, p_holm in zip(out, present, effects, family, strict=False):
+        row["p_holm"] = float(p_holm)
+        row["verdict"] = st.verdict(c.a, c.b, effect, row["p_holm"], row["mde"], c.direction, c.min_effect)
+    return out
 
 
 def write_csv(path: Path, rows: list[dict[str, Any]], columns: list[str] | tuple[str, ...]) -> Path:
@@ -241,8 +290,9 @@ def write_csv(path: Path, rows: list[dict[str, Any]], columns: list[str] | tuple
 
 
 def write_report(results_dir: Path | str) -> list[Path]:
-    """Writes results.csv, summary.csv, summary.md and the two learning-curve PNGs into
-    `results_dir`; returns their paths."""
+    """Writes results.csv, summary.csv, comparisons.csv (when the experiment registers comparisons),
+    summary.md, the learning curves and the AUC performance profile into `results_dir`; returns their
+    paths."""
     results_dir = Path(results_dir)
     run_dirs = find_runs(results_dir)
     try:
@@ -251,78 +301,150 @@ def write_report(results_dir: Path | str) -> list[Path]:
         raise InvalidConfig(str(err)) from None
     if not rows:
         raise InvalidConfig(f"no evaluations yet in the runs of {results_dir}")
-    rows.sort(key=lambda r: (*row_key(r), r["seed"], r["env_steps"]))
+    rows.sort(key=sort_key)
     summary = summarize(rows)
     all_curves = curves(rows)
-    title = _experiment_name(results_dir)
+    info = _experiment_info(results_dir)
+    comparisons = tuple(Comparison(**c) for c in info.get("comparisons", []))
+    compared = compare(all_curves, comparisons)
+    name = _experiment_name(results_dir)
     paths = [
         write_csv(results_dir / RESULTS_CSV, rows, RESULT_COLUMNS),
         write_csv(results_dir / SUMMARY_CSV, summary, list(summary[0])),
-        plot_curves(all_curves, "episodes", results_dir / CURVES_EPISODES, title),
-        plot_curves(all_curves, "env_steps", results_dir / CURVES_STEPS, title),
     ]
+    if compared:
+        paths.append(write_csv(results_dir / COMPARISONS_CSV, compared, list(compared[0])))
     failed = [d.name for d in run_dirs if (d / ERROR_FILE).is_file()]
     empty = [d.name for d in run_dirs if not read_progress(d)]
-    (results_dir / SUMMARY_MD).write_text(markdown_summary(results_dir, summary, failed, empty))
-    paths.insert(2, results_dir / SUMMARY_MD)
+    (results_dir / SUMMARY_MD).write_text(
+        markdown_summary(results_dir, summary, compared, len(comparisons), failed, empty)
+    )
+    paths.append(results_dir / SUMMARY_MD)
+    paths.append(plot_curves(all_curves, results_dir / CURVES_PNG, name))
+    labels = config_labels([c.key for c in all_curves])
+    aucs = {label: c.seed_metrics()["auc"] for label, c in zip(labels, all_curves, strict=True)}
+    if all(not np.isnan(v).any() for v in aucs.values()):
+        profile = st.performance_profile(aucs, PROFILE_TAUS)
+        paths.append(plot_profile(profile, PROFILE_TAUS, all_curves, results_dir / PROFILE_PNG, name))
     return paths
 
 
+def plot_runs(run_dirs: list[Path], out: Path) -> Path:
+    """`tsrl plot`: the learning curves of any run folders, grouped into configurations, with the
+    report's statistics (IQM and stratified-bootstrap interval)."""
+    rows = sorted(collect([Path(d) for d in run_dirs]), key=sort_key)
+    if not rows:
+        raise InvalidConfig(f"no evaluations yet in {', '.join(map(str, run_dirs))}")
+    return plot_curves(curves(rows), out)
+
+
 _HOW_TO_READ = (
-    "Mean across seeds [95% percentile-bootstrap interval: {resamples:,} resamples of the seeds, "
-    "numpy seed {seed}]. **Final success**: per seed, the mean eval success rate of the last {final} "
-    "evaluations that every seed of the configuration reached, the last of them at *at env steps* (a seed "
-    "still running holds its configuration back). **Episodes / env steps to 50% and 90%**: per seed, the "
-    "first evaluation at or above the threshold. `k/n`: k of the n seeds reached it within their budget; "
-    "the mean and interval are over those k only: seeds that never reached it are left out, not counted "
-    "at the budget, so when k < n the mean is optimistic (— when none did). With one seed, or one "
-    "reaching seed, the interval is that value. Wall time: training plus evaluations, per run."
+    "IQM: interquartile mean across seeds (the mean of the middle half; rliable). [95% interval]: "
+    "percentile interval of rliable's stratified bootstrap, {resamples:,} resamples of the seeds, numpy "
+    "seed {seed}. **AUC** (the primary sample-efficiency metric): per seed, the area under its success "
+    "curve over the evaluations every seed of the configuration reached, divided by their span of env "
+    "steps (1 = success 1 at every evaluation). **Final success**: per seed, the mean of the last "
+    "{final} of those evaluations. **Env steps to 50% / 90%**: Kaplan-Meier median of each seed's first "
+    "evaluation at or above the threshold; a seed that never got there counts as censored at its last "
+    "evaluation, not dropped; `k/n` seeds reached it; `> N` when fewer than half are known to have "
+    "(the median lies beyond the N env steps evaluated). Wall time: training plus evaluations, per run."
+)
+_HOW_TO_READ_COMPARISONS = (
+    "**Comparisons** (pre-registered in the experiment file): effect = IQM(a) - IQM(b) of the per-seed "
+    "metric, with its 95% interval (each arm's seeds resampled on their own); P(a > b): probability "
+    "that a random seed of a beats one of b (ties count half), with its interval; p: Mann-Whitney U test "
+    "on the per-seed metric, one-sided in the registered direction (two-sided when none), exact without "
+    "ties; p (Holm): adjusted over the experiment's {m} comparison(s). A difference is *detected* when "
+    "p (Holm) < {alpha}. MDE: the smallest effect this study detects with {power:.0%} power at level "
+    "{alpha} / {m} (normal approximation with the effect's bootstrap standard deviation); a "
+    "non-detection says nothing about effects smaller than it."
 )
 
 
 def markdown_summary(
-    results_dir: Path, summary: list[dict[str, Any]], failed: list[str], empty: list[str]
+    results_dir: Path,
+    summary: list[dict[str, Any]],
+    compared: list[dict[str, Any]],
+    registered: int,
+    failed: list[str],
+    empty: list[str],
 ) -> str:
-    """summary.md: the learning curves, the table, and how to read it."""
+    """summary.md: the learning curves, the table, the comparisons, and how to read them."""
     description = _experiment_info(results_dir).get("description", "")
-    header = ["configuration", "seeds", "final success", "at env steps"]
-    header += [f"{u} to {round(t * 100)}%" for t in THRESHOLDS for u in ("episodes", "env steps")]
-    header += ["wall time [s]"]
     lines = [f"# {_experiment_name(results_dir)}", ""] + ([description, ""] if description else [])
-    lines += [
-        f"![success rate vs episodes]({CURVES_EPISODES})",
-        "",
-        f"![success rate vs env steps]({CURVES_STEPS})",
-    ]
-    lines += ["", "| " + " | ".join(header) + " |", "| --- | ---: | --- | ---: |" + " --- |" * 4 + " ---: |"]
+    lines += [f"![learning curves]({CURVES_PNG})", ""]
+    header = ["configuration", "seeds", "eval episodes", "AUC, IQM", "final success, IQM", "at env steps"]
+    header += [f"env steps to {round(t * 100)}%" for t in THRESHOLDS] + ["wall time [s]"]
+    lines += ["| " + " | ".join(header) + " |", "| --- | ---: | ---: | --- | --- | ---: | --- | --- | ---: |"]
     for r, label in zip(summary, config_labels([row_key(r) for r in summary]), strict=True):
-        cells = [label, str(r["seeds"]), _interval(r, "final_success", ".2f"), str(r["final_env_steps"])]
+        cells = [label, str(r["seeds"]), r["eval_episodes"]]
+        cells += [_interval(r, "auc"), _interval(r, "final_success"), f"{r['final_env_steps']:,}"]
         for pct in (round(t * 100) for t in THRESHOLDS):
-            reached = f"{r[f'seeds_reaching_{pct}']}/{r['seeds']}: "
-            cells += [reached + _interval(r, f"{unit}_to_{pct}", ".0f") for unit in ("episodes", "env_steps")]
+            median = r[f"env_steps_to_{pct}_km_median"]
+            shown = f"{median:,.0f}" if math.isfinite(median) else f"> {r['final_env_steps']:,}"
+            cells.append(f"{shown} ({r[f'seeds_reaching_{pct}']}/{r['seeds']})")
         cells.append(f"{r['wall_time_s_mean']:.0f}")
         lines.append("| " + " | ".join(cells) + " |")
-    lines += [
-        "",
-        _HOW_TO_READ.format(resamples=BOOTSTRAP_RESAMPLES, seed=BOOTSTRAP_SEED, final=FINAL_EVALS),
-        "",
-    ]
+    lines += ["", _HOW_TO_READ.format(resamples=st.RESAMPLES, seed=st.SEED, final=FINAL_EVALS), ""]
+    if registered:
+        lines += ["## Pre-registered comparisons", ""]
+        header = [
+            "a vs b",
+            "metric",
+            "seeds",
+            "effect [95%]",
+            "P(a > b) [95%]",
+            "p",
+            "p (Holm)",
+            "MDE",
+            "verdict",
+        ]
+        lines += [
+            "| " + " | ".join(header) + " |",
+            "| --- | --- | ---: | --- | --- | ---: | ---: | ---: | --- |",
+        ]
+        sides = {"greater": ">", "less": "<", "two-sided": "vs"}
+        for c in compared:
+            cells = [
+                f"{c['a']} {sides[c['direction']]} {c['b']}",
+                c["metric"],
+                f"{c['seeds_a']}/{c['seeds_b']}",
+                f"{c['effect']:+.3f} [{c['effect_ci_low']:+.3f}, {c['effect_ci_high']:+.3f}]",
+                f"{c['poi']:.2f} [{c['poi_ci_low']:.2f}, {c['poi_ci_high']:.2f}]",
+                f"{c['p']:.3g}",
+                f"{c['p_holm']:.3g}",
+                f"{c['mde']:.3f}",
+                c["verdict"],
+            ]
+            lines.append("| " + " | ".join(cells) + " |")
+        if len(compared) < registered:
+            lines += [
+                "",
+                f"{registered - len(compared)} registered comparison(s) have no runs of an arm yet.",
+            ]
+        lines += [
+            "",
+            _HOW_TO_READ_COMPARISONS.format(m=registered, alpha=st.ALPHA, power=st.POWER),
+            "",
+            f"![AUC performance profile]({PROFILE_PNG})",
+            "",
+        ]
     if failed:
         lines += [f"Failed runs (error.txt in their folders): {', '.join(failed)}.", ""]
     if empty:
         lines += [f"Runs without evaluations (left out): {', '.join(empty)}.", ""]
-    lines.append(
-        f"Data: [{RESULTS_CSV}]({RESULTS_CSV}) (one row per run and evaluation), [{SUMMARY_CSV}]({SUMMARY_CSV}). "
-        f"Regenerate with `tsrl report {results_dir}`.\n"
-    )
+    data = f"[{RESULTS_CSV}]({RESULTS_CSV}) (one row per run and evaluation), [{SUMMARY_CSV}]({SUMMARY_CSV})"
+    if compared:
+        data += f", [{COMPARISONS_CSV}]({COMPARISONS_CSV})"
+    lines.append(f"Data: {data}. Regenerate with `tsrl report {results_dir}`.\n")
     return "\n".join(lines)
 
 
-def _interval(row: dict[str, Any], stat: str, fmt: str) -> str:
-    mean, lo, hi = row[f"{stat}_mean"], row[f"{stat}_ci_low"], row[f"{stat}_ci_high"]
-    if math.isnan(mean):
+def _interval(row: dict[str, Any], stat: str) -> str:
+    point, lo, hi = row[f"{stat}_iqm"], row[f"{stat}_ci_low"], row[f"{stat}_ci_high"]
+    if math.isnan(point):
         return "—"
-    return f"{mean:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]"
+    return f"{point:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
 def _cell(value: Any) -> Any:

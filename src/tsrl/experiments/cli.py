@@ -54,9 +54,11 @@ class Report:
 
     results_dir: Positional[Annotated[Path, arg(metavar="RESULTS_DIR")]]
     """An experiment's results folder (e.g. results/quick-reach). Its run folders are aggregated into
-    results.csv (one row per run and evaluation), summary.csv and summary.md (per configuration:
-    episodes and env steps to 50% and 90% success, final success, 95% bootstrap intervals across
-    seeds) and learning_curves_episodes.png / learning_curves_steps.png."""
+    results.csv (one row per run and evaluation), summary.csv and summary.md (per configuration: IQM
+    across seeds of the area under the success curve and of final success with 95% stratified-bootstrap
+    intervals, Kaplan-Meier env steps to 50% and 90% success), comparisons.csv (the experiment's
+    pre-registered comparisons: effect, interval, Holm-adjusted p, power, verdict), learning_curves.png
+    and performance_profile.png."""
 
     def run(self) -> int:
         return _cmd_report(self)

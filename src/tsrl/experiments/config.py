@@ -28,6 +28,48 @@ Key = tuple[str, str, str, str, str]
 other settings that differ between runs of a results folder (empty within one experiment)."""
 
 
+#: Per-seed metrics a comparison can test (tsrl.experiments.aggregate computes them).
+COMPARISON_METRICS: dict[str, str] = {
+    "auc": "area under the success curve over env steps, normalised to [0, 1] (sample efficiency)",
+    "final_success": "mean success rate of the last evaluations",
+}
+DIRECTIONS: tuple[str, ...] = ("greater", "less", "two-sided")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A pre-registered comparison of two arms of an experiment on one per-seed metric."""
+
+    a: str
+    """An arm: its label in the report, the grid values that differ between configurations joined by
+    " / " (e.g. "fs1", or "fs1 / joint" when two axes vary)."""
+    b: str
+    """The arm `a` is compared with."""
+    metric: str = "auc"
+    """auc or final_success (COMPARISON_METRICS)."""
+    direction: str = "greater"
+    """The registered hypothesis: metric(a) greater than, less than, or different from (two-sided)
+    metric(b); it sets the side of the test."""
+    min_effect: float | None = None
+    """The smallest difference of IQMs that matters (e.g. the one the paper claims), in the metric's
+    units; the verdict says whether the study could detect it."""
+
+    def __post_init__(self) -> None:
+        for name in ("a", "b"):
+            if not isinstance(getattr(self, name), str):
+                raise InvalidConfig(f"{name} must be an arm's label (a string); got {getattr(self, name)!r}")
+        if self.metric not in COMPARISON_METRICS:
+            raise InvalidConfig(f"unknown metric {self.metric!r}; accepted: {', '.join(COMPARISON_METRICS)}")
+        if self.direction not in DIRECTIONS:
+            raise InvalidConfig(f"unknown direction {self.direction!r}; accepted: {', '.join(DIRECTIONS)}")
+        if self.min_effect is not None and (
+            isinstance(self.min_effect, bool)
+            or not isinstance(self.min_effect, int | float)
+            or self.min_effect <= 0
+        ):
+            raise InvalidConfig(f"min_effect must be a number > 0; got {self.min_effect!r}")
+
+
 @dataclass(frozen=True)
 class ExperimentConfig:
     """A grid of training runs: env x obs x action x algo x seeds, with one budget and one evaluation
@@ -58,6 +100,9 @@ class ExperimentConfig:
     agent: AgentConfig = field(default_factory=AgentConfig)
     """Settings shared by every run (the file's [agent] table overrides AgentConfig's defaults); its
     `algo` is replaced by each grid point's."""
+    comparisons: tuple[Comparison, ...] = ()
+    """Pre-registered comparisons (the file's [[comparisons]] tables), reported with effect, interval,
+    Holm-adjusted p-value, power and verdict by `tsrl report`."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name or self.name.startswith("."):
@@ -83,6 +128,42 @@ class ExperimentConfig:
         if isinstance(self.agent, dict):
             object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
+        self._check_comparisons()
+
+    def arms(self) -> list[str]:
+        """The labels of the grid's configurations, as the report names them (config_labels)."""
+        keys = [
+            (e, o, a, g, "") for e, o, a, g in itertools.product(self.env, self.obs, self.action, self.algo)
+        ]
+        return config_labels(keys)
+
+    def _check_comparisons(self) -> None:
+        if not isinstance(self.comparisons, list | tuple):
+            raise InvalidConfig(
+                f"comparisons must be a list of tables ([[comparisons]]); got {self.comparisons!r}"
+            )
+        comparisons = []
+        arms = self.arms()
+        for i, c in enumerate(self.comparisons, start=1):
+            try:
+                if isinstance(c, dict):
+                    missing = [k for k in ("a", "b") if k not in c]
+                    if missing:
+                        raise InvalidConfig(f"missing {' and '.join(missing)} (the two arms compared)")
+                    c = from_dict(Comparison, c)
+                if not isinstance(c, Comparison):
+                    raise InvalidConfig(
+                        f"must be a table of {', '.join(f.name for f in dataclasses.fields(Comparison))}"
+                    )
+                for arm in (c.a, c.b):
+                    if arm not in arms:
+                        raise InvalidConfig(f"unknown arm {arm!r}; accepted: {', '.join(arms)}")
+                if c.a == c.b:
+                    raise InvalidConfig(f"compares arm {c.a!r} with itself")
+            except InvalidConfig as err:
+                raise InvalidConfig(f"comparison {i}: {err}") from None
+            comparisons.append(c)
+        object.__setattr__(self, "comparisons", tuple(comparisons))
 
     def runs(self) -> list[TrainConfig]:
         """One TrainConfig per grid point, seed-major (every configuration's seed 0 first), so that a

@@ -1,60 +1,115 @@
-"""Learning curves of an experiment: eval success rate vs episodes or env steps, one colour per
-configuration, mean across seeds with its 95% interval (computed by tsrl.experiments.aggregate, which
-calls this module; nothing here imports it)."""
+"""Plots of an experiment: learning curves (eval success rate against env steps; per-seed lines under
+the IQM across seeds and its 95% stratified-bootstrap interval, tsrl.experiments.statistics) and the
+AUC performance profile. Observation presets get the paper's colours, in its Table I order."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..agents.plotting import save_success_plot
-from .config import Key, config_labels
+from .config import config_labels
+from .statistics import THRESHOLDS
+
+if TYPE_CHECKING:
+    from .aggregate import Curve
+    from .statistics import Estimate
+
+#: The paper's colours of the Table I presets.
+PAPER_COLOURS: dict[str, str] = {
+    "baseline": "tab:orange",
+    "simple": "tab:red",
+    "fs0": "#08306b",  # dark blue
+    "fs1": "#6baed6",  # light blue
+    "fs2": "tab:grey",
+}
+
+#: Legend entries (spec strings can be long) wrap at this many characters.
+LEGEND_WIDTH = 60
 
 
-class Curve(Protocol):
-    """What a learning curve offers the plot (tsrl.experiments.aggregate.Curve has it)."""
+def colours(curves: list[Curve]) -> list[str]:
+    """The paper's colour of each curve's preset when the curves are distinct presets; else tab10/tab20."""
+    import matplotlib.pyplot as plt
 
-    key: Key
-    seeds: tuple[int, ...]
-    env_steps: np.ndarray
-    episodes: np.ndarray
-
-    def stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Mean, low and high of the interval across seeds at each evaluation."""
-        ...
+    presets = [c.key[1] for c in curves]
+    if all(p in PAPER_COLOURS for p in presets) and len(set(presets)) == len(presets):
+        return [PAPER_COLOURS[p] for p in presets]
+    cycle = plt.get_cmap("tab10" if len(curves) <= 10 else "tab20").colors
+    return [cycle[i % len(cycle)] for i in range(len(curves))]
 
 
-def plot_curves(curves: list[Curve], x: Literal["episodes", "env_steps"], out: Path, title: str) -> Path:
-    """Writes a PNG of `curves` against training episodes (as the paper plots) or env steps."""
+def describe(curves: list[Curve]) -> str:
+    """Task, algorithm, seeds and evaluation episodes of `curves`, e.g. "UR5eReach-v0, DDPG + HER,
+    10 seeds, 50 eval episodes"."""
+
+    def joined(values: set) -> str:
+        return "/".join(map(str, sorted(values)))
+
+    envs = joined({c.key[0].removeprefix("tsrl/") for c in curves})
+    algos = joined({c.key[3].upper() for c in curves})
+    seeds = {len(c.seeds) for c in curves}
+    n = f"{min(seeds)}-{max(seeds)}" if len(seeds) > 1 else str(seeds.pop())
+    episodes = joined({e for c in curves for e in c.eval_episodes})
+    return f"{envs}, {algos} + HER, {n} seed{'s' if n != '1' else ''}, {episodes} eval episodes"
+
+
+def plot_curves(curves: list[Curve], out: Path, name: str | None = None) -> Path:
+    """Writes a PNG of `curves` against env steps: thin per-seed lines, the IQM across seeds and its
+    interval, dashed lines at the success thresholds."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = config_labels([c.key for c in curves])
-    colours = plt.get_cmap("tab10" if len(curves) <= 10 else "tab20").colors
-    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
-    for i, (curve, label) in enumerate(zip(curves, labels, strict=True)):
-        xs = curve.episodes if x == "episodes" else curve.env_steps
-        mean, low, high = curve.stats()
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=120)
+    for curve, label, colour in zip(
+        curves, config_labels([c.key for c in curves]), colours(curves), strict=True
+    ):
+        xs = curve.env_steps
+        for seed_curve in curve.success:
+            ax.plot(xs, seed_curve, color=colour, linewidth=0.5, alpha=0.3)
+        est = curve.stats()
         n = len(curve.seeds)
-        colour = colours[i % len(colours)]
-        ax.plot(
-            xs,
-            mean,
-            color=colour,
-            label=f"{label} ({n} seed{'s' if n > 1 else ''})",
-            marker="." if len(xs) < 30 else None,
-        )
+        legend = textwrap.fill(f"{label} ({n} seed{'s' if n > 1 else ''})", LEGEND_WIDTH)
+        ax.plot(xs, est.point, color=colour, linewidth=2, label=legend)
         if n > 1:
-            ax.fill_between(xs, low, high, color=colour, alpha=0.2, linewidth=0)
+            ax.fill_between(xs, est.low, est.high, color=colour, alpha=0.2, linewidth=0)
+    for threshold in THRESHOLDS:
+        ax.axhline(threshold, color="black", linestyle="--", linewidth=0.7, alpha=0.5)
+    title = f"{describe(curves)}\nIQM across seeds, 95% stratified-bootstrap interval; thin: seeds"
     return save_success_plot(
-        fig,
-        ax,
-        out,
-        xlabel="training episodes" if x == "episodes" else "env steps",
-        title=f"{title}: mean and 95% bootstrap CI across seeds",
-        fontsize=10,
+        fig, ax, out, xlabel="env steps", title=f"{name}\n{title}" if name else title, fontsize=9
     )
+
+
+def plot_profile(
+    profile: dict[str, Estimate], taus: np.ndarray, curves: list[Curve], out: Path, name: str
+) -> Path:
+    """Writes the AUC performance profile: per arm, the fraction of seeds with AUC above tau, with its
+    interval."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=120)
+    for (label, est), colour in zip(profile.items(), colours(curves), strict=True):
+        ax.plot(taus, est.point, color=colour, linewidth=2, label=textwrap.fill(label, LEGEND_WIDTH))
+        ax.fill_between(taus, est.low, est.high, color=colour, alpha=0.2, linewidth=0)
+    ax.set_xlabel("AUC threshold tau (normalised area under the success curve)")
+    ax.set_ylabel("fraction of seeds with AUC > tau")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set_title(
+        f"{name}\n{describe(curves)}\nAUC performance profile, 95% stratified-bootstrap interval", fontsize=9
+    )
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
+    plt.close(fig)
+    return out
