@@ -298,7 +298,7 @@ def _check_env_options(cfg: TrainConfig) -> None:
     """Makes (and closes) one environment so that a bad obs spec fails before torch loads."""
     import gymnasium as gym
 
-    gym.make(cfg.env_id, **cfg.env_kwargs).close()
+    gym.make(cfg.gym_id, **cfg.env_kwargs).close()
 
 
 def _differences(ours: Any, theirs: Any, prefix: str = "") -> list[str]:

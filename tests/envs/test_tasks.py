@@ -235,3 +235,23 @@ def test_built_in_tasks_load_from_package_data():
     for name in ("UR5eReach-v0", "UR5ePickPlace-v0", "UR5ePoseReach-v0", "UR5eObstacleReach-v0"):
         task = load_task(name)
         assert task.name == name and task.source is not None and task.source.suffix == ".toml"
+
+
+def test_a_user_task_file_trains_through_the_cli_and_resumes(tmp_path):
+    from cli_runner import TINY, run_tsrl
+
+    task = tmp_path / "my_reach.toml"
+    task.write_text(REACH_TOML)
+    out = tmp_path / "runs"
+    args = ["train", "--task", str(task), "--obs", "fs0", "--action", "task", *TINY, "--out-dir", str(out)]
+    done = run_tsrl(*args, "--total-timesteps", "300")
+    assert done.returncode == 0, done.stderr
+    (run_dir,) = out.iterdir()
+    assert run_dir.name == "task-my_reach__fs0__task__ddpg__s0"
+    config = (run_dir / "config.json").read_text()
+    assert str(task) in config and '"action": "task"' in config
+    resumed = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", "400", "--no-progress")
+    assert resumed.returncode == 0, resumed.stderr
+    assert "400 env steps" in resumed.stdout
+    missing = run_tsrl("train", "--task", str(tmp_path / "nope.toml"), *TINY)
+    assert missing.returncode == 2 and "nope.toml" in missing.stderr and missing.stderr.count("\n") == 1

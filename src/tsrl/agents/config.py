@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from tyro.conf import OmitArgPrefixes, arg
@@ -32,6 +33,10 @@ HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 POLICY_INPUTS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 #: `obs` / `action` value for environments that are not tsrl's (e.g. FetchReach-v4 in benchmarks).
 NATIVE = "native"
+#: `action` value that keeps the task's own action (its file's [action]) instead of a built-in mode.
+TASK_ACTION = "task"
+#: An `env_id` ending so is a task file (docs/tasks.md), built by tsrl/Task-v0.
+TASK_FILE_SUFFIX = ".toml"
 
 
 def tsrl_env_ids() -> list[str]:
@@ -44,9 +49,9 @@ def tsrl_env_ids() -> list[str]:
 
 
 def check_env_id(env_id: str) -> None:
-    """Raises InvalidConfig listing tsrl's environments unless `env_id` is one of them."""
+    """Raises InvalidConfig listing tsrl's environments unless `env_id` is one of them (or a task file)."""
     ids = tsrl_env_ids()
-    if env_id not in ids:
+    if env_id not in ids and not env_id.endswith(TASK_FILE_SUFFIX):
         raise InvalidConfig(f"unknown environment {env_id!r}; accepted: {', '.join(ids)}")
 
 
@@ -160,13 +165,16 @@ class AgentConfig:
 class TrainConfig:
     """One training run: environment x observation x action x algorithm x seed, and its budget."""
 
-    env_id: Annotated[str, arg(aliases=("--env",))] = "tsrl/UR5eReach-v0"
-    """Registered environment id."""
+    env_id: Annotated[str, arg(aliases=("--env", "--task"))] = "tsrl/UR5eReach-v0"
+    """Registered environment id, or the path of a task file (TOML, docs/tasks.md) to train on."""
     # Help texts built from the registries, so that they list every preset and mode there is.
     obs: Annotated[
         str, arg(help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.")
     ] = "fs1"
-    action: Annotated[str, arg(help=f"Action mode: {', '.join(ACTION_MODES)}.")] = "taskspace"
+    action: Annotated[
+        str,
+        arg(help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action)."),
+    ] = "taskspace"
     seed: int = 0
     """Seed of networks, exploration, replay sampling and training episodes."""
     total_timesteps: int = 20_000
@@ -186,10 +194,16 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.env_id, str) or not self.env_id:
             raise InvalidConfig(f"env_id must be a registered environment id; got {self.env_id!r}")
+        if self.is_task_file:
+            from ..envs import load_task
+
+            path = Path(self.env_id).expanduser().resolve()
+            load_task(path)  # a missing or bad file: one line naming it
+            object.__setattr__(self, "env_id", str(path))
         if self.is_tsrl_env:
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")
-            _choice("action", self.action, tuple(ACTION_MODES))
+            _choice("action", self.action, (*ACTION_MODES, TASK_ACTION))
             if not isinstance(self.obs, str) or not self.obs.strip():
                 raise InvalidConfig(
                     f"obs must be a preset ({', '.join(OBS_PRESETS)}) or a task-map spec; got {self.obs!r}"
@@ -209,13 +223,34 @@ class TrainConfig:
             object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
 
     @property
-    def is_tsrl_env(self) -> bool:
-        return self.env_id.startswith("tsrl/")
+    def is_task_file(self) -> bool:
+        return self.env_id.endswith(TASK_FILE_SUFFIX)
 
     @property
-    def env_kwargs(self) -> dict[str, str]:
-        """Keyword arguments of gym.make: obs and action for tsrl environments, none otherwise."""
-        return {"obs": self.obs, "action": self.action} if self.is_tsrl_env else {}
+    def is_tsrl_env(self) -> bool:
+        return self.env_id.startswith("tsrl/") or self.is_task_file
+
+    @property
+    def gym_id(self) -> str:
+        """The id gym.make gets: env_id, or tsrl/Task-v0 for a task file."""
+        from ..envs import TASK_ENV_ID
+
+        return TASK_ENV_ID if self.is_task_file else self.env_id
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of gym.make: obs and action (unless the task's own) for tsrl environments,
+        and for a task file the file and its episode length; none for other environments."""
+        if not self.is_tsrl_env:
+            return {}
+        kwargs: dict[str, Any] = {"obs": self.obs}
+        if self.action != TASK_ACTION:
+            kwargs["action"] = self.action
+        if self.is_task_file:
+            from ..envs import load_task
+
+            kwargs |= {"task": self.env_id, "max_episode_steps": load_task(self.env_id).episode_steps}
+        return kwargs
 
     @property
     def run_name(self) -> str:
@@ -229,7 +264,7 @@ class TrainConfig:
             import hashlib
 
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
-        env = self.env_id.replace("/", "-")
+        env = f"task-{Path(self.env_id).stem}" if self.is_task_file else self.env_id.replace("/", "-")
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         return f"{env}__{obs}__{self.action}__{self.agent.algo}__s{self.seed}{suffix}"
 

@@ -53,7 +53,7 @@ def make_env(cfg: TrainConfig, render_mode: str | None = None, **kwargs: Any) ->
     kwargs = cfg.env_kwargs | kwargs
     if render_mode is not None:
         kwargs["render_mode"] = render_mode
-    return gym.make(cfg.env_id, **kwargs)
+    return gym.make(cfg.gym_id, **kwargs)
 
 
 def make_vec_env(cfg: TrainConfig) -> VecEnv:

@@ -206,6 +206,14 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
         raise InvalidConfig(f"cannot read experiment file {path}: {err.strerror}") from None
     except tomllib.TOMLDecodeError as err:
         raise InvalidConfig(f"{path}: not valid TOML: {err}") from None
+    envs = data.get("env")
+    if isinstance(envs, list):  # task files are relative to the experiment file
+        data["env"] = [
+            str(path.parent / e)
+            if isinstance(e, str) and e.endswith(".toml") and not Path(e).is_absolute()
+            else e
+            for e in envs
+        ]
     exp = experiment_from_dict(path.name.removesuffix(SUFFIX), data, where=str(path))
     if check_envs:
         check_environments(exp, where=str(path))
@@ -249,7 +257,7 @@ def check_environments(exp: ExperimentConfig, where: str = "experiment") -> None
         try:
             if cfg.is_tsrl_env:
                 check_env_id(cfg.env_id)
-            gym.make(cfg.env_id, **cfg.env_kwargs).close()
+            gym.make(cfg.gym_id, **cfg.env_kwargs).close()
         except TsrlError as err:
             raise InvalidConfig(
                 f"{where}: env {cfg.env_id!r} with obs {cfg.obs!r}, action {cfg.action!r}: {err}"
