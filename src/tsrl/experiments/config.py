@@ -305,6 +305,11 @@ def resolve_experiment(name_or_file: str) -> Path:
 
 
 def config_labels(keys: list[Key]) -> list[str]:
-    """Short labels naming only what differs between configurations (obs alone if nothing does)."""
+    """Short labels naming only what differs between configurations (obs alone if nothing does); a task
+    file in the env axis is named by its file name without the folder and suffix."""
     varying = [i for i in range(len(keys[0])) if len({k[i] for k in keys}) > 1] or [1]
-    return [" / ".join(k[i] for i in varying) for k in keys]
+
+    def short(value: str) -> str:
+        return Path(value).stem if value.endswith(".toml") else value
+
+    return [" / ".join(short(k[i]) for i in varying) for k in keys]
