@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 
 from tsrl.assets import load_model
+from tsrl.envs import OBS_PRESETS, parse_observation
 from tsrl.kinematics import forward_kinematics, random_configurations
-from tsrl.taskmaps import OBS_PRESETS, parse_spec
 
 SUBSTEPS = 20  # 40 ms control period / 2 ms physics step
 
@@ -56,7 +56,7 @@ def main() -> None:
     print(f"physics: {physics_us:.1f} us per control period ({SUBSTEPS} x mj_step, reach scene)")
     print(f"{'preset':<10}{'dim':>5}{'us/eval (y, J)':>17}{'ratio to physics':>19}")
     for name in OBS_PRESETS:
-        stack = parse_spec(name, model)
+        stack = parse_observation(name, model)
         eval_us = best_time_us(lambda stack=stack: stack(model, data), args.evals, args.repeats)
         print(f"{name:<10}{stack.dim:>5}{eval_us:>17.1f}{eval_us / physics_us:>18.1%}")
 

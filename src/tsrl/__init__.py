@@ -6,12 +6,12 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"  # off-screen by default on machines without a display
 
 from .assets import SCENES, load_model
-from .envs import ENV_IDS, register_envs
+from .envs import ENV_IDS, OBS_PRESETS, register_envs
 from .exceptions import ModelLoadError, TsrlError, UnknownName, UnknownScene
 from .ik import DlsSolver, IKOptions, IKResult
 from .kinematics import dh_forward, forward_kinematics
 from .robots import ROBOTS, Robot, load_robot
-from .taskmaps import OBS_PRESETS, TaskMap, TaskMapValue, parse_spec
+from .taskmaps import TaskMap, TaskMapValue, parse_spec
 
 register_envs()
 

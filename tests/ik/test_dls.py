@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS
+from tsrl.envs import OBS_PRESETS
 from tsrl.exceptions import InvalidConfig, UnknownName
 from tsrl.ik import DlsSolver, IKOptions, IKResult
 from tsrl.ik.dls import _dls, _Workspace
@@ -54,11 +55,11 @@ def test_dls_step_null_space_term_is_the_projected_posture_step(rng):
 
 
 @pytest.mark.parametrize(
-    "spec", [POSE, ALIGNMENT, "fs2", "quaternion(tcp)", "quaternion(tcp), quaternion(flange)"]
+    "spec", [POSE, ALIGNMENT, OBS_PRESETS["fs2"], "quaternion(tcp)", "quaternion(tcp), quaternion(flange)"]
 )
 def test_stack_difference_of_one_value_gives_the_parts_own_numbers(reach_model, spec, rng):
     """The stack's fast path for one value equals its parts' own rules, sign boundary included."""
-    task_map = parse_spec(spec, reach_model)
+    task_map = parse_spec(spec, reach_model, presets=OBS_PRESETS)
     pairs = [rng.normal(size=(2, task_map.dim)) for _ in range(50)]
     boundary = np.zeros((2, task_map.dim))
     boundary[0, ::4], boundary[1, 1::4] = 1.0, 1.0  # quaternion rows with a . b = 0

@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from tsrl.envs import parse_observation
 from tsrl.exceptions import NotRelabelable
 from tsrl.kinematics import forward_kinematics, random_configurations
 from tsrl.taskmaps import TASK_MAPS, known_maps, parse_spec
@@ -142,7 +143,7 @@ def test_maps_not_reading_the_frame_are_unchanged(moving_arm, rng):
 
 def test_batched_relabel_equals_per_row(moving_arm, rng):
     model, data = moving_arm
-    stack = parse_spec("fs2, scalarProductXZ(tcp, target), vectorY(target)", model)
+    stack = parse_observation("fs2, scalarProductXZ(tcp, target), vectorY(target)", model)
     ys = np.stack([stack(model, data).y + rng.normal(size=stack.dim) for _ in range(5)])
     deltas = rng.uniform(-0.2, 0.2, size=(5, 3))
     quats = np.stack([_random_quat(rng) for _ in range(5)])

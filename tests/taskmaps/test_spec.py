@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from tsrl.assets.ur5e import HOME_Q
+from tsrl.envs import OBS_PRESETS
+from tsrl.envs import parse_observation as parse_spec  # the parser with the environments' presets
 from tsrl.exceptions import SpecError, UnknownName, UnknownTaskMap
 from tsrl.kinematics import forward_kinematics
-from tsrl.taskmaps import OBS_PRESETS, Position, Stack, known_maps, parse_spec
+from tsrl.taskmaps import Position, Stack, known_maps
 
 #: The feature order of DESIGN.md's observation table.
 PRESET_FEATURES = {
@@ -24,6 +26,20 @@ PRESET_FEATURES["fs1"] = [
     "velocity(positionDiff(tcp, target))",
 ]
 PRESET_FEATURES["fs2"] = [*PRESET_FEATURES["fs1"], "quaternion(tcp)", "quaternionDiff(tcp, target)"]
+#: The paper's pick-and-place features phi_1..phi_6, and with the box relative to the TCP.
+PRESET_FEATURES["pick_phi"] = [
+    "position(box)",
+    "position(target)",
+    "position(tcp)",
+    "quaternion(tcp)",
+    "positionDiff(box, target)",
+    "positionDiff(tcp, target)",
+]
+PRESET_FEATURES["pick_phi_box"] = [
+    *PRESET_FEATURES["pick_phi"],
+    "positionDiff(box, tcp)",
+    "velocity(position(box))",
+]
 
 
 @pytest.mark.parametrize(
@@ -40,9 +56,13 @@ def test_preset_dimension_and_slices_tile_the_vector(name, dim, ur5e):
 
 
 def test_presets_list_the_design_features_in_order(reach_model):
+    from tsrl.assets import load_model
+
+    pick_model = load_model("pick_place")
     assert set(OBS_PRESETS) == set(PRESET_FEATURES)
     for name, features in PRESET_FEATURES.items():
-        assert list(parse_spec(name, reach_model).slices) == features
+        model = pick_model if name.startswith("pick") else reach_model
+        assert list(parse_spec(name, model).slices) == features
 
 
 def test_slices_name_each_parts_rows(ur5e):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from tsrl.assets.ur5e import HOME_Q, JOINT_LIMITS, TCP_OFFSET, UR5E_DH
+from tsrl.envs import parse_observation
 from tsrl.kinematics import dh_forward, forward_kinematics, random_configurations
 from tsrl.taskmaps import parse_spec
 from tsrl.taskmaps.position import negative_skew, skew
@@ -182,7 +183,7 @@ def test_joint_state_reads_only_the_arm_of_the_pick_place_scene(rng):
 
 def test_returned_arrays_are_fresh(ur5e, rng):
     model, data = ur5e
-    stack = parse_spec("fs2", model)
+    stack = parse_observation("fs2", model)
     first = stack(model, data)
     kept = first.y.copy(), first.J.copy()
     forward_kinematics(model, data, random_configurations(model, rng, 1)[0])
@@ -199,7 +200,7 @@ def test_static_frames_have_zero_jacobian(ur5e, rng):
 
 
 def test_one_map_on_two_data_objects(reach_model, rng):
-    stack = parse_spec("fs2, positionRel(tcp, upper_arm_link)", reach_model)
+    stack = parse_observation("fs2, positionRel(tcp, upper_arm_link)", reach_model)
     datas = [mujoco.MjData(reach_model) for _ in range(2)]
     for data, q in zip(datas, random_configurations(reach_model, rng, 2)):
         forward_kinematics(reach_model, data, q)
@@ -211,7 +212,7 @@ def test_one_map_on_two_data_objects(reach_model, rng):
 
 def test_maps_pickle_after_use(ur5e):
     model, data = ur5e
-    stack = parse_spec("fs2, distance(suction_cup, table), jointLimits", model)
+    stack = parse_observation("fs2, distance(suction_cup, table), jointLimits", model)
     y = stack(model, data).y
     clone = pickle.loads(pickle.dumps(stack))
     np.testing.assert_array_equal(clone(model, data).y, y)

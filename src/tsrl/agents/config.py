@@ -19,8 +19,8 @@ from typing import Annotated, Any, Literal
 from tyro.conf import OmitArgPrefixes, arg
 
 from ..envs.actions import ACTION_MODES
+from ..envs.observations import OBS_PRESETS
 from ..exceptions import InvalidConfig
-from ..taskmaps import OBS_PRESETS
 
 Algo = Literal["ddpg", "td3", "sac"]
 HerRelabel = Literal["feature", "plain"]

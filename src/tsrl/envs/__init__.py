@@ -2,6 +2,7 @@
 
 from .actions import ACTION_MODES, ACTION_PRESETS, ActionMap, ActionPart, ActionSpec, HeldPart
 from .base import TaskEnv, checked_action
+from .observations import OBS_PRESETS, parse_observation
 from .registration import ENV_IDS, TASK_ENV_ID, register_envs
 from .tasks import BUILTIN_TASKS, Task, load_task
 
@@ -10,6 +11,7 @@ __all__ = (
     "ACTION_PRESETS",
     "BUILTIN_TASKS",
     "ENV_IDS",
+    "OBS_PRESETS",
     "TASK_ENV_ID",
     "ActionMap",
     "ActionPart",
@@ -19,5 +21,6 @@ __all__ = (
     "TaskEnv",
     "checked_action",
     "load_task",
+    "parse_observation",
     "register_envs",
 )

@@ -24,10 +24,10 @@ from ..exceptions import InvalidAction, InvalidConfig
 from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_qpos_indices, as_slice, joint_limits, name_to_id
 from ..robots import Robot, load_robot
-from ..taskmaps import OBS_PRESETS, Stack
+from ..taskmaps import Stack
 from ..taskmaps.relabel import relabelled
 from .actions import ACTION_PRESETS, ActionMap
-from .observations import StepPlan
+from .observations import OBS_PRESETS, StepPlan
 from .randomization import Randomizer
 from .scenes import load_scene
 from .tasks import Task, load_task

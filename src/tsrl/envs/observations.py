@@ -1,4 +1,5 @@
-"""The step plan: every task map a step needs, in one stack evaluated once, with named rows.
+"""Observation presets and the step plan: every task map a step needs, in one stack evaluated once,
+with named rows.
 
 Rows of the stack: the observation's maps first (so `observation` is its leading rows), then the
 maps of the IK, the achieved and desired goal and the penalties that the observation lacks (a map
@@ -23,6 +24,29 @@ from .tasks import Penalty, Task
 
 #: The frame that carries the desired goal: the site of the `target` mocap body.
 GOAL_FRAME = TARGET_SITE
+
+#: Named observation specs: the paper's configurations (Table I) for reach, and its pick-and-place
+#: observation. A task's `observation` (or the env's `obs=`) may name them, alone or inside a spec.
+OBS_PRESETS: dict[str, str] = {
+    "baseline": "position(tcp), velocity(position(tcp))",
+    "simple": "positionDiff(tcp, target), velocity(positionDiff(tcp, target))",
+    "fs0": "position(tcp), position(target), positionDiff(tcp, target)",
+    "fs1": "fs0, velocity(position(tcp)), velocity(positionDiff(tcp, target))",
+    "fs2": "fs1, quaternion(tcp), quaternionDiff(tcp, target)",
+    # The paper's pick-and-place features phi_1..phi_6: object position, goal position, end-effector
+    # position and quaternion, object-goal and end-effector-goal differences (19 values).
+    "pick_phi": (
+        "position(box), position(target), position(tcp), quaternion(tcp), positionDiff(box, target), "
+        "positionDiff(tcp, target)"
+    ),
+    # pick_phi plus the box relative to the TCP and the box's velocity (25 values).
+    "pick_phi_box": "pick_phi, positionDiff(box, tcp), velocity(position(box))",
+}
+
+
+def parse_observation(spec: str, model: mujoco.MjModel, joints: tuple[str, ...] | None = None) -> Stack:
+    """The observation's Stack of a spec that may name OBS_PRESETS (tsrl.taskmaps.parse_spec)."""
+    return parse_spec(spec, model, joints, OBS_PRESETS)
 
 
 class _Rows:
@@ -65,7 +89,7 @@ class StepPlan:
     def __init__(
         self, model: mujoco.MjModel, obs_spec: str, task: Task, ik_map: Stack | None, joints: tuple[str, ...]
     ):
-        self.obs_map = parse_spec(obs_spec, model, joints)
+        self.obs_map = parse_observation(obs_spec, model, joints)
         achieved = parse_spec(task.goal.map, model, joints)
         self.goal_frame = _goal_frame(achieved, task.goal.map)
         self.pose_goal = len(achieved.parts) == 2

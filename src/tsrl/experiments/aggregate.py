@@ -30,8 +30,8 @@ import numpy as np
 
 from ..agents.config import TrainConfig
 from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
+from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
-from ..taskmaps import OBS_PRESETS
 from . import statistics as st
 from .config import EXPERIMENT_FILE, Comparison, Key, config_labels
 from .plots import plot_curves, plot_profile

@@ -6,12 +6,11 @@ from .frames import Frame, FrameCache, resolve_frame
 from .joint import JointLimits, JointState
 from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
-from .spec import OBS_PRESETS, TASK_MAPS, known_maps, parse_spec
+from .spec import TASK_MAPS, known_maps, parse_spec
 from .stack import Stack
 from .velocity import Velocity
 
 __all__ = (
-    "OBS_PRESETS",
     "TASK_MAPS",
     "AccumulatedCollisions",
     "Distance",

@@ -1,9 +1,12 @@
-"""Task-map specs: "position(tcp), velocity(positionDiff(tcp, target))" -> Stack; registry and presets."""
+"""Task-map specs: "position(tcp), velocity(positionDiff(tcp, target))" -> Stack; the map registry.
+
+Named presets (the paper's observation configurations) belong to the environments
+(tsrl.envs.observations.OBS_PRESETS); `parse_spec` expands the names of any presets table it is given."""
 
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 
@@ -18,15 +21,6 @@ from .orientation import AXES, Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
 from .stack import Stack
 from .velocity import Velocity
-
-#: The paper's observation configurations (Table I) for the reach task, as specs; a spec may name one.
-OBS_PRESETS: dict[str, str] = {
-    "baseline": "position(tcp), velocity(position(tcp))",
-    "simple": "positionDiff(tcp, target), velocity(positionDiff(tcp, target))",
-    "fs0": "position(tcp), position(target), positionDiff(tcp, target)",
-    "fs1": "fs0, velocity(position(tcp)), velocity(positionDiff(tcp, target))",
-    "fs2": "fs1, quaternion(tcp), quaternionDiff(tcp, target)",
-}
 
 
 @dataclass(frozen=True)
@@ -73,11 +67,14 @@ def known_maps() -> tuple[str, ...]:
     return tuple(TASK_MAPS)
 
 
-def parse_spec(spec: str, model: mujoco.MjModel, joints: Joints = None) -> Stack:
-    """Builds the task maps of a spec, e.g. "fs1, quaternion(tcp), scalarProductZZ(world, tcp)".
+def parse_spec(
+    spec: str, model: mujoco.MjModel, joints: Joints = None, presets: Mapping[str, str] | None = None
+) -> Stack:
+    """Builds the task maps of a spec, e.g. "position(tcp), quaternion(tcp), scalarProductZZ(world, tcp)".
 
     A spec is a comma-separated list of maps `name(arg, ...)` (no parentheses for maps without
-    arguments) and preset names (`OBS_PRESETS`), which expand in place. Arguments are frame names
+    arguments) and names of `presets` (name -> spec, e.g. tsrl.envs.OBS_PRESETS), which expand in
+    place. Arguments are frame names
     (sites, else bodies; `world` is the world body), geom names (`distance`) or a map (`velocity`).
     Always returns a Stack, even for one map, so `slices` names every part.
 
@@ -94,7 +91,7 @@ def parse_spec(spec: str, model: mujoco.MjModel, joints: Joints = None) -> Stack
     """
     if joints is not None:
         joints = controlled_joints(model, joints)  # checked here, once for every map that reads them
-    return Stack(_Parser(spec, joints).parse(model, ()))
+    return Stack(_Parser(spec, joints, presets or {}).parse(model, ()))
 
 
 @dataclass(frozen=True)
@@ -115,9 +112,10 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>[^\s,()]+)|(?P<punct>[,()]))")
 class _Parser:
     """Recursive descent over: spec := item ("," item)* ; item := NAME ["(" [item ("," item)*] ")"]."""
 
-    def __init__(self, spec: str, joints: Joints = None):
+    def __init__(self, spec: str, joints: Joints, presets: Mapping[str, str]):
         self.spec = spec
         self.joints = joints
+        self.presets = presets
         self.tokens: list[tuple[str, str, int]] = []  # (kind, text, position)
         pos = 0
         while pos < len(spec):
@@ -172,15 +170,17 @@ class _Parser:
         return maps
 
     def build(self, node: _Node, model: mujoco.MjModel, presets: tuple[str, ...]) -> list[TaskMap]:
-        if node.name in OBS_PRESETS:
+        if node.name in self.presets:
             if node.args is not None:
                 raise self.error(f"preset {node.name} takes no arguments", node.pos)
             if node.name in presets:
                 raise self.error(f"preset {node.name} refers to itself", node.pos)
-            return _Parser(OBS_PRESETS[node.name], self.joints).parse(model, (*presets, node.name))
+            return _Parser(self.presets[node.name], self.joints, self.presets).parse(
+                model, (*presets, node.name)
+            )
         entry = TASK_MAPS.get(node.name)
         if entry is None:
-            raise UnknownTaskMap(node.name, [*TASK_MAPS, *OBS_PRESETS])
+            raise UnknownTaskMap(node.name, [*TASK_MAPS, *self.presets])
         args = node.args or ()
         if len(args) != len(entry.args):
             kinds = ", ".join(entry.args) or "none"
@@ -190,7 +190,7 @@ class _Parser:
         values: list[object] = []
         for k, (kind, arg) in enumerate(zip(entry.args, args), start=1):
             if kind == "map":
-                if arg.name in OBS_PRESETS:
+                if arg.name in self.presets:
                     raise self.error(
                         f"argument {k} of {node.name} must be one task map, not a preset", arg.pos
                     )
