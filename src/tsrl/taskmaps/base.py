@@ -34,8 +34,6 @@ class TaskMap(abc.ABC):
     dim: int
     #: Canonical spec text, e.g. "positionDiff(tcp, target)"; `parse_spec(map.spec, model)` rebuilds it.
     spec: str
-    #: Names of the frames and geoms the map reads (used by `translated`).
-    frames: tuple[str, ...] = ()
 
     _workspace: _Workspace | None = None
 
@@ -64,6 +62,12 @@ class TaskMap(abc.ABC):
     def frame_refs(self) -> tuple[Frame, ...]:
         """The resolved frames whose pose and Jacobian `evaluate` reads from the cache."""
         return ()
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        """Names of the frames the map reads, from its resolved frames (relabelling asks which maps read
+        the goal frame)."""
+        return tuple(dict.fromkeys(f.name for f in self.frame_refs()))
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """a - b in the map's coordinates; override where coordinates can jump."""

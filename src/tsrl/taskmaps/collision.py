@@ -34,13 +34,18 @@ class Distance(TaskMap):
         self.a, self.b = resolve_geom(model, a), resolve_geom(model, b)
         self.body_a, self.body_b = int(model.geom_bodyid[self.a]), int(model.geom_bodyid[self.b])
         body_names = (model.body(self.body_a).name, model.body(self.body_b).name)
-        self.frames = tuple(dict.fromkeys((a, b, *body_names)))
+        self._names = tuple(dict.fromkeys((a, b, *body_names)))
         self.spec = f"distance({a}, {b})"
         self.distmax = distmax
         self._fromto = np.zeros(6)
         self._n = np.zeros(3)
         self._Ja = np.zeros((3, model.nv))
         self._Jb = np.zeros((3, model.nv))
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        """The geoms and the bodies that carry them (a collision map reads geoms, not frames)."""
+        return self._names
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         model, data = cache.model, cache.data
@@ -148,10 +153,15 @@ class AccumulatedCollisions(TaskMap):
         collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         geoms = np.flatnonzero(collides)
         found = [model.geom(g).name for g in geoms] + [model.body(model.geom_bodyid[g]).name for g in geoms]
-        self.frames = tuple(dict.fromkeys(n for n in found if n))
+        self._names = tuple(dict.fromkeys(n for n in found if n))
         self._J1 = np.zeros((3, model.nv))
         self._J2 = np.zeros((3, model.nv))
         self._row = np.zeros(model.nv)
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        """The geoms and the bodies that carry them (a collision map reads geoms, not frames)."""
+        return self._names
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         model, data = cache.model, cache.data

@@ -37,7 +37,6 @@ class Quaternion(TaskMap):
 
     def __init__(self, model: mujoco.MjModel, f: str):
         self.f = resolve_frame(model, f)
-        self.frames = (f,)
         self.spec = f"quaternion({f})"
 
     def frame_refs(self) -> tuple[Frame, ...]:
@@ -61,7 +60,6 @@ class QuaternionDiff(TaskMap):
 
     def __init__(self, model: mujoco.MjModel, f: str, g: str):
         self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
-        self.frames = (f, g)
         self.spec = f"quaternionDiff({f}, {g})"
 
     def frame_refs(self) -> tuple[Frame, ...]:
@@ -89,7 +87,6 @@ class Vector(TaskMap):
     def __init__(self, model: mujoco.MjModel, axis: str, f: str):
         self.axis = AXES.index(axis)
         self.f = resolve_frame(model, f)
-        self.frames = (f,)
         self.spec = f"vector{axis}({f})"
         self._skew = np.zeros((3, 3))
 
@@ -113,7 +110,6 @@ class ScalarProduct(TaskMap):
     def __init__(self, model: mujoco.MjModel, axes: str, f: str, g: str):
         self.axes = AXES.index(axes[0]), AXES.index(axes[1])
         self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
-        self.frames = (f, g)
         self.spec = f"scalarProduct{axes}({f}, {g})"
         self._c = np.zeros(3)
         self._dJ = np.zeros((3, model.nv))

@@ -31,7 +31,6 @@ class Position(TaskMap):
 
     def __init__(self, model: mujoco.MjModel, f: str):
         self.f = resolve_frame(model, f)
-        self.frames = (f,)
         self.spec = f"position({f})"
 
     def frame_refs(self) -> tuple[Frame, ...]:
@@ -50,7 +49,6 @@ class PositionDiff(TaskMap):
 
     def __init__(self, model: mujoco.MjModel, f: str, g: str):
         self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
-        self.frames = (f, g)
         self.spec = f"positionDiff({f}, {g})"
 
     def frame_refs(self) -> tuple[Frame, ...]:
@@ -72,7 +70,6 @@ class PositionRel(TaskMap):
 
     def __init__(self, model: mujoco.MjModel, f: str, g: str):
         self.f, self.g = resolve_frame(model, f), resolve_frame(model, g)
-        self.frames = (f, g)
         self.spec = f"positionRel({f}, {g})"
         self._v = np.zeros(3)
         self._skew = np.zeros((3, 3))

@@ -48,7 +48,6 @@ class Stack(TaskMap):
             start += p.dim
         self.dim = start
         self.spec = ", ".join(p.spec for p in self.parts)
-        self.frames = tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
         self._spans = tuple(self.slices.values())
         # A part repeated (same spec) is evaluated once and copied: index of each part's first occurrence.
         first: dict[str, int] = {}
@@ -67,6 +66,10 @@ class Stack(TaskMap):
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return tuple(f for p in self.parts for f in p.frame_refs())
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         views = self._views

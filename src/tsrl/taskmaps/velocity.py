@@ -22,12 +22,15 @@ class Velocity(TaskMap):
             raise SpecError(f"velocity of a velocity is not supported: velocity({task_map.spec})")
         self.map = task_map
         self.dim = task_map.dim
-        self.frames = task_map.frames
         self.spec = f"velocity({task_map.spec})"
         self._y = np.zeros(task_map.dim)
 
     def frame_refs(self) -> tuple[Frame, ...]:
         return self.map.frame_refs()
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        return self.map.frames
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         self.map.evaluate(cache, self._y, J)
