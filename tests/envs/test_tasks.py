@@ -255,3 +255,11 @@ def test_a_user_task_file_trains_through_the_cli_and_resumes(tmp_path):
     assert "400 env steps" in resumed.stdout
     missing = run_tsrl("train", "--task", str(tmp_path / "nope.toml"), *TINY)
     assert missing.returncode == 2 and "nope.toml" in missing.stderr and missing.stderr.count("\n") == 1
+
+
+def test_the_documented_example_task_builds_and_passes_the_checker():
+    from cli_runner import REPO
+
+    env = gym.make(TASK_ENV_ID, task=str(REPO / "examples" / "tasks" / "my_reach.toml"), max_episode_steps=50)
+    check_env(env.unwrapped, skip_render_check=True)
+    assert env.unwrapped.task.success.position == 0.03
