@@ -66,3 +66,11 @@ class NotRelabelable(TsrlError, ValueError):
             f"task map {spec} cannot be relabelled exactly when frame {frame!r} moves: {reason}; "
             "leave it out of the observation or add what it needs to the goal"
         )
+
+
+def check_positive(name: str, value: float, strict: bool = True) -> None:
+    """Raises InvalidConfig unless `value` is a number > 0 (>= 0 with strict=False), naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InvalidConfig(f"{name} must be a number; got {value!r}")
+    if (strict and not value > 0) or (not strict and not value >= 0):
+        raise InvalidConfig(f"{name} must be {'>' if strict else '>='} 0; got {value}")

@@ -20,7 +20,7 @@ from tyro.conf import OmitArgPrefixes, arg
 
 from ..envs.actions import ACTION_MODES
 from ..envs.observations import OBS_PRESETS
-from ..exceptions import InvalidConfig
+from ..exceptions import InvalidConfig, check_positive
 
 Algo = Literal["ddpg", "td3", "sac"]
 HerRelabel = Literal["feature", "plain"]
@@ -60,13 +60,6 @@ def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
         raise InvalidConfig(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
 
 
-def _positive(name: str, value: float, strict: bool = True) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InvalidConfig(f"{name} must be a number; got {value!r}")
-    if (strict and not value > 0) or (not strict and not value >= 0):
-        raise InvalidConfig(f"{name} must be {'>' if strict else '>='} 0; got {value}")
-
-
 @dataclass(frozen=True)
 class HerConfig:
     """Hindsight Experience Replay: how stored transitions get new goals."""
@@ -86,7 +79,7 @@ class HerConfig:
         _choice("her strategy", self.strategy, HER_STRATEGIES)
         if isinstance(self.n_sampled_goal, bool) or not isinstance(self.n_sampled_goal, int):
             raise InvalidConfig(f"her n_sampled_goal must be an integer; got {self.n_sampled_goal!r}")
-        _positive("her n_sampled_goal", self.n_sampled_goal)
+        check_positive("her n_sampled_goal", self.n_sampled_goal)
 
 
 @dataclass(frozen=True)
@@ -150,9 +143,9 @@ class AgentConfig:
                 f"got {self.policy_inputs!r}"
             )
         for name in ("learning_rate", "train_freq_episodes", "batch_size", "buffer_size", "clip_obs"):
-            _positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         for name in ("gradient_steps", "learning_starts", "action_noise"):
-            _positive(name, getattr(self, name), strict=False)
+            check_positive(name, getattr(self, name), strict=False)
         if not 0 < self.gamma <= 1:
             raise InvalidConfig(f"gamma must be in (0, 1]; got {self.gamma}")
         if not 0 < self.tau <= 1:
@@ -218,7 +211,7 @@ class TrainConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 raise InvalidConfig(f"{name} must be an integer; got {value!r}")
-            _positive(name, value)
+            check_positive(name, value)
         if isinstance(self.agent, dict):
             object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
 

@@ -20,7 +20,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
-from ..exceptions import InvalidConfig
+from ..exceptions import InvalidConfig, check_positive
 from ..robots import ROBOTS
 from .actions import ACTION_PRESETS, WORKSPACE_HIGH, WORKSPACE_LOW, ActionPart, ActionSpec, HeldPart
 
@@ -328,10 +328,10 @@ def _validate(task: Task) -> None:
         raise InvalidConfig(
             f"action = {task.action!r}; accepted: {', '.join(ACTION_PRESETS)} or an [action] table"
         )
-    _positive("episode_steps", task.episode_steps)
-    _positive("control_dt", task.control_dt)
-    _positive("success.position", task.success.position)
-    _positive("success.orientation", task.success.orientation)
+    check_positive("episode_steps", task.episode_steps)
+    check_positive("control_dt", task.control_dt)
+    check_positive("success.position", task.success.position)
+    check_positive("success.orientation", task.success.orientation)
     if not 0 <= task.start_noise < math.pi:
         raise InvalidConfig(f"start_noise must be in [0, pi) rad; got {task.start_noise}")
     p = task.goal.position
@@ -363,11 +363,6 @@ def _validate(task: Task) -> None:
         raise InvalidConfig(
             f"obstacle: need 0 < fraction_low <= fraction_high < 1 and 0 < radius[0] <= radius[1]; got {s}"
         )
-
-
-def _positive(key: str, value: float) -> None:
-    if not value > 0:
-        raise InvalidConfig(f"{key} must be > 0; got {value}")
 
 
 def _goal_within(task: Task, low: tuple[float, ...], high: tuple[float, ...]) -> None:
