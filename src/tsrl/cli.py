@@ -54,9 +54,9 @@ def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) 
 
 # -- options generated from config dataclasses ------------------------------------------------------
 #: Nested config fields whose options get a prefix (HerConfig.strategy -> --her-strategy).
-_PREFIXED = {"her"}
+_PREFIXED = {"her", "demos"}
 #: Extra option names.
-_ALIASES = {"env_id": ["--env"], "agent.her.relabel": ["--her"]}
+_ALIASES = {"env_id": ["--env"], "agent.her.relabel": ["--her"], "agent.demos.path": ["--demos"]}
 
 
 def attribute_docstrings(cls: type) -> dict[str, str]:
@@ -117,6 +117,9 @@ def add_config_options(parser: argparse.ArgumentParser, cls: type) -> list[tuple
             kwargs["metavar"] = "{" + ",".join(kwargs["choices"]) + "}"
         elif hint is bool:
             kwargs["action"] = argparse.BooleanOptionalAction
+        elif type(None) in typing.get_args(hint):  # `str | None`: given means a value
+            kwargs["type"] = next(t for t in typing.get_args(hint) if t is not type(None))
+            kwargs["metavar"] = kwargs["type"].__name__.upper()
         elif typing.get_origin(hint) is tuple:
             kwargs["type"] = int
             kwargs["nargs"] = "+"
@@ -336,10 +339,46 @@ def _parser() -> tuple[argparse.ArgumentParser, list[tuple[str, str]]]:
     p_demo.add_argument("--scene", default="reach", help=f"built-in scene: {', '.join(SCENES)}")
     p_demo.add_argument("--poses", type=int, default=3, help="number of random poses besides home")
     p_demo.add_argument("--seed", type=int, default=0, help="seed of the random poses")
+    _add_demos_command(commands)
     from .experiments.cli import add_experiment_commands
 
     add_experiment_commands(commands)  # experiment, report: handled by args.handler
     return parser, paths
+
+
+def _add_demos_command(commands: Any) -> None:
+    """`tsrl demos record`: demonstration files for `tsrl train --demos FILE` (tsrl.agents.demos)."""
+    p_demos = commands.add_parser("demos", help="record demonstration episodes for --demos")
+    sub = p_demos.add_subparsers(dest="demos_command", required=True, parser_class=_Parser)
+    p = sub.add_parser(
+        "record",
+        help="record a demonstrator's successful episodes into a .npz file",
+        description="Records episodes of the environment's scripted controller (reach, pick-and-place) "
+        "or of a trained run's policy (--policy); keeps the successful ones unless --keep-failed.",
+    )
+    p.add_argument("--env", default="tsrl/UR5ePickPlace-v0", help="environment id (ignored with --policy)")
+    p.add_argument(
+        "--obs", default="fs1", help="observation preset or spec of the agent that will train on it"
+    )
+    p.add_argument("--action", default="taskspace", help="action mode")
+    p.add_argument("--episodes", type=int, default=100, help="episodes to keep")
+    p.add_argument("--out", type=Path, required=True, help="the .npz file to write")
+    p.add_argument("--policy", type=Path, metavar="RUN_DIR", help="record this run's latest policy")
+    p.add_argument("--seed", type=int, default=0, help="seed of the episode seeds")
+    p.add_argument("--keep-failed", action="store_true", help="keep unsuccessful episodes too")
+    p.set_defaults(handler=_cmd_demos_record)
+
+
+def _cmd_demos_record(args: argparse.Namespace) -> int:
+    from .agents.demos import record_demos, save_demos, summary_line
+
+    if args.episodes < 1:
+        raise InvalidConfig(f"--episodes must be >= 1; got {args.episodes}")
+    demos = record_demos(
+        args.env, args.episodes, args.obs, args.action, args.policy, args.seed, args.keep_failed
+    )
+    print(summary_line(demos, save_demos(demos, args.out)))
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

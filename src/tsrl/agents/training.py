@@ -8,6 +8,7 @@
                        eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss
     tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
     checkpoints/       latest model, replay buffer, normaliser statistics, counters, RNG states
+    demos.json         with demonstrations: their file's absolute path, sha256 and size
     learning_curve.png written when the run completes
 ```
 
@@ -38,6 +39,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from ..exceptions import InvalidConfig
 from .checkpoint import RunState, latest_checkpoint, load_checkpoint, read_state, save_checkpoint
 from .config import CONFIG_FILE, TrainConfig, from_dict, load_config
+from .demos import DEMOS_RECORD, attach_bc_loss, check_demo_record, demo_record
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGOS, buffer_capacity, make_agent, make_vec_env
 
@@ -84,8 +86,11 @@ def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> P
             "or choose another --out-dir"
         )
     session = _Session(cfg, run_dir, progress_bar)  # builds the envs first: bad obs/action fail here
+    demos = demo_record(cfg)  # a bad demonstration file fails here, before the run folder exists
     run_dir.mkdir(parents=True, exist_ok=True)
     _write_json_atomic(run_dir / CONFIG, cfg.to_dict())
+    if demos is not None:
+        _write_json_atomic(run_dir / DEMOS_RECORD, demos)
     session.run(checkpoint=None)
     return run_dir
 
@@ -102,6 +107,8 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
     if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
         cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
         _write_json_atomic(run_dir / CONFIG, cfg.to_dict())
+    if checkpoint is None:  # restarts from scratch: the demonstrations must be the recorded ones
+        check_demo_record(run_dir, cfg)
     session = _Session(cfg, run_dir, progress_bar)
     session.run(checkpoint=checkpoint)
     return run_dir
@@ -140,6 +147,8 @@ class _Session:
                 episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
                 model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
                 model.buffer_size = model.replay_buffer.buffer_size
+                if cfg.agent.demos.enabled:  # the demonstrations came back in the replay buffer
+                    attach_bc_loss(model, cfg.agent.demos)
                 # The env restarts with a new episode, seeded from (seed, episodes done).
                 self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
             last_row = _truncate_progress(self.run_dir / PROGRESS, state.env_steps if checkpoint else -1)
