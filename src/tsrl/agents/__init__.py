@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .config import AgentConfig, HerConfig, NotARunFolder, TrainConfig, load_config
+from .config import AgentConfig, DemoConfig, HerConfig, NotARunFolder, TrainConfig, load_config
 
 _LAZY = {
     "ALGOS": "factory",
@@ -26,6 +26,7 @@ _LAZY = {
 __all__ = (
     "ALGOS",
     "AgentConfig",
+    "DemoConfig",
     "FeatureHerReplayBuffer",
     "HerConfig",
     "NotARunFolder",

@@ -297,7 +297,7 @@ class _ShadowController:
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         for key in ("achieved_goal", "desired_goal"):
             if not np.array_equal(obs[key], self.obs[key]):
-                raise TsrlError(f"{self.name}: its shadow env diverged from the recording env ({key})")
+                raise RuntimeError(f"{self.name}: its shadow env diverged from the recording env ({key})")
         positions = self.obs["observation"]
         action = self.control({name: positions[s] for name, s in self.slices.items()}).astype(np.float32)
         self.obs, *_ = self.env.step(action)
