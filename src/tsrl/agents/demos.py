@@ -272,6 +272,9 @@ class Demonstrator(Protocol):
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """The action (k,) for the recording env's observation; the recorder steps with exactly it."""
 
+    def close(self) -> None:
+        """Releases what the demonstrator holds (environments)."""
+
 
 class _ShadowController:
     """A controller that reads positions from a second env of the same id, stepped in lockstep.
@@ -423,10 +426,11 @@ def record_demos(
     """
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 0:
         raise InvalidConfig(f"episodes must be an integer >= 0; got {episodes!r}")
-    demonstrator: Any
+    demonstrator: Demonstrator
     if policy is not None:
-        demonstrator = PolicyDemonstrator(policy)
-        env_id, obs, action = demonstrator.cfg.env_id, demonstrator.cfg.obs, demonstrator.cfg.action
+        from_run = PolicyDemonstrator(policy)
+        env_id, obs, action = from_run.cfg.env_id, from_run.cfg.obs, from_run.cfg.action
+        demonstrator = from_run
     else:
         from .config import check_env_id
 
@@ -475,7 +479,7 @@ def record_demos(
     return Demonstrations(**arrays, meta=meta)
 
 
-def _run_episode(env: gym.Env, demonstrator: Any, seed: int, t: int) -> dict[str, np.ndarray] | None:
+def _run_episode(env: gym.Env, demonstrator: Demonstrator, seed: int, t: int) -> dict[str, np.ndarray] | None:
     """One episode's arrays; None if it ended before its time limit (a physics blow-up)."""
     obs, _ = env.reset(seed=seed)
     demonstrator.reset(seed)
