@@ -26,6 +26,7 @@ import math
 import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -167,7 +168,9 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
     """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread: gradient steps per second of
     `model.train` on a buffer of 2,000 random-action transitions (batch 256), then env steps per second
     of `model.learn` with learning (40 gradient steps per 2 episodes). Plain stable-baselines3 DDPG +
-    its HerReplayBuffer vs tsrl's (feature HER) vs tsrl's with 100 demonstrations (BC + Q-filter)."""
+    its HerReplayBuffer vs tsrl's (feature HER) vs tsrl's with 100 demonstrations (BC + Q-filter), and
+    sbx's (JAX) DDPG with tsrl's feature HER buffer where sbx is importable (`pip install sbx-rl`; not
+    a tsrl dependency). Each model is timed after one untimed `train(updates)` (sbx compiles then)."""
     import time
 
     import torch as th
@@ -180,10 +183,12 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
     demos = record_benchmark_demos(out_dir)
     a = AgentConfig(learning_starts=env_steps)
 
-    def sb3_plain(cfg: TrainConfig):
+    def sb3_plain(
+        cfg: TrainConfig, algo: Any = DDPG, policy: Any = "MultiInputPolicy", her: Any = HerReplayBuffer
+    ) -> Any:
         venv = make_vec_env(cfg)
-        return DDPG(
-            "MultiInputPolicy",
+        return algo(
+            policy,
             venv,
             learning_rate=a.learning_rate,
             buffer_size=cfg.total_timesteps + 100,
@@ -194,7 +199,7 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
             train_freq=(a.train_freq_episodes, "episode"),
             gradient_steps=a.gradient_steps,
             action_noise=NormalActionNoise(np.zeros(4), a.action_noise * np.ones(4)),
-            replay_buffer_class=HerReplayBuffer,
+            replay_buffer_class=her,
             replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
             policy_kwargs={"net_arch": list(a.net_arch)},
             seed=cfg.seed,
@@ -209,6 +214,18 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
             AgentConfig(learning_starts=env_steps, demos=DemoConfig(path=str(demos))),
         ),
     }
+    try:
+        import sbx
+        from sbx.td3.policies import TD3Policy
+
+        from tsrl.agents.her import FeatureHerReplayBuffer
+
+        variants["sbx (JAX) DDPG + feature HER"] = (
+            lambda cfg: sb3_plain(cfg, sbx.DDPG, TD3Policy, FeatureHerReplayBuffer),
+            a,
+        )
+    except ImportError:
+        print("sbx not installed: its row is left out")
     print(
         f"\nlearner speed, {PICK} fs1, seeds {seeds}: {updates} gradient steps timed; {env_steps} env steps with learning"
     )
@@ -219,6 +236,7 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
             cfg = TrainConfig(env_id=PICK, obs="fs1", seed=seed, total_timesteps=3 * env_steps, agent=agent)
             model = build(cfg) if build is not None else make_agent(cfg, make_vec_env(cfg))
             model.learn(env_steps)  # random actions fill the buffer; no update yet
+            model.train(gradient_steps=updates, batch_size=a.batch_size)  # untimed: sbx compiles here
             t0 = time.perf_counter()
             model.train(gradient_steps=updates, batch_size=a.batch_size)
             t1 = time.perf_counter()
