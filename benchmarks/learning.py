@@ -5,6 +5,10 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py fetch    # Gymnasium-Robotics FetchReach-v4, same agent: 3 seeds
     python benchmarks/learning.py her      # fs1 with feature-aware HER vs stable-baselines3's plain HER
     python benchmarks/learning.py all      # the three above
+    python benchmarks/learning.py demos    # tsrl/UR5ePickPlace-v0 (fs1) with 100 scripted demonstrations
+                                           # vs without, same seeds: 5 seeds, 50,000 env steps, 100 eval episodes
+    python benchmarks/learning.py speed    # learner speed: gradient steps/s, plain SB3 DDPG + HER vs tsrl's
+                                           # feature HER vs with demonstrations (BC + Q-filter)
 
 Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/learning): a finished
 one is reused, an interrupted one resumed, so the script can be stopped and started again. Delete the
@@ -22,6 +26,7 @@ import math
 import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,18 +35,33 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from fetch_compat import register_fetch_envs
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
-from tsrl.agents.config import NATIVE
+from tsrl.agents.config import NATIVE, DemoConfig
 from tsrl.agents.plotting import mean_ci95
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 THRESHOLDS = (0.5, 0.9, 0.95)
+PICK = "tsrl/UR5ePickPlace-v0"
+#: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
+BUDGETS = {"demos": (50_000, 2_500, 100)}
+BUDGET = (6_000, 200, 20)
+#: The demos suite's demonstrations: the scripted controller's, recorded once (seed 0, successes only).
+DEMO_EPISODES = 100
 
 
 def configs(
-    suite: str, seeds: list[int], total: int, eval_freq: int, eval_episodes: int
+    suite: str, seeds: list[int], total: int, eval_freq: int, eval_episodes: int, demos: Path | None = None
 ) -> list[TrainConfig]:
-    """The runs of a suite; agent settings are AgentConfig's defaults (the paper's) throughout."""
+    """The runs of a suite; agent settings are AgentConfig's defaults (the paper's) throughout, and
+    DemoConfig's for the runs with demonstrations."""
     common = {"total_timesteps": total, "eval_freq": eval_freq, "eval_episodes": eval_episodes}
+    if suite == "demos":
+        assert demos is not None
+        with_demos = AgentConfig(demos=DemoConfig(path=str(demos)))
+        return [
+            TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common)
+            for agent in (with_demos, AgentConfig())
+            for s in seeds
+        ]
     if suite == "tsrl":
         return [TrainConfig(obs="fs1", seed=s, **common) for s in seeds]
     if suite == "fetch":
@@ -69,7 +89,7 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
         register_fetch_envs()
     from tsrl.agents.training import resume, train
 
-    parent = out_dir / ("fetch" if cfg.env_id.startswith("Fetch") else "reach")
+    parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place"}.get(cfg.env_id, "reach")
     run_dir = parent / cfg.run_name
     checkpoint = latest_checkpoint(run_dir)
     if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
@@ -79,16 +99,24 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
     return train(cfg, parent, progress_bar=False)
 
 
-def first_reaching(rows: list[dict[str, float]], threshold: float) -> tuple[float, float]:
-    """(env steps, wall time s) of the first evaluation with success >= threshold; NaN if none."""
+def first_reaching(
+    rows: list[dict[str, float]], threshold: float, train_time: bool = False
+) -> tuple[float, float]:
+    """(env steps, wall time s) of the first evaluation with success >= threshold; NaN if none.
+
+    With `train_time`, the wall time leaves the evaluations out.
+    """
     for r in rows:
         if r["eval_success_rate"] >= threshold:
-            return r["env_steps"], r["wall_time_s"]
+            return r["env_steps"], r["wall_time_s"] - (r["eval_time_s"] if train_time else 0.0)
     return math.nan, math.nan
 
 
-def summarize(label: str, run_dirs: list[Path]) -> None:
-    """Prints one line per seed and a mean +- 95% CI line (over the seeds that reached the level)."""
+def summarize(label: str, run_dirs: list[Path], train_time: bool = False) -> None:
+    """Prints one line per seed and a mean +- 95% CI line (over the seeds that reached the level).
+
+    Wall times include the evaluations unless `train_time`.
+    """
     header = " ".join(
         f"{'steps@' + str(int(t * 100)) + '%':>10} {'s@' + str(int(t * 100)) + '%':>7}" for t in THRESHOLDS
     )
@@ -97,7 +125,7 @@ def summarize(label: str, run_dirs: list[Path]) -> None:
     per_seed = []
     for run_dir in run_dirs:
         rows = read_progress(run_dir)
-        reached = [first_reaching(rows, t) for t in THRESHOLDS]
+        reached = [first_reaching(rows, t, train_time) for t in THRESHOLDS]
         last = rows[-1]
         train_time = last["wall_time_s"] - (last.get("eval_time_s") or 0.0)
         rate = last["env_steps"] / train_time if train_time > 0 else math.nan
@@ -121,6 +149,102 @@ def summarize(label: str, run_dirs: list[Path]) -> None:
     final = mean_ci95(np.array([p[1] for p in per_seed]))
     rate = mean_ci95(np.array([p[2] for p in per_seed]))
     print(f"{'mean±CI95':<10} {' '.join(cells)} {final[0]:>6.2f} {rate[0]:>8.1f}")
+    reached_95 = sum(np.isfinite(p[0][THRESHOLDS.index(0.95)][0]) for p in per_seed)
+    print(f"seeds reaching 95% within the budget: {reached_95}/{len(per_seed)}")
+
+
+def record_benchmark_demos(out_dir: Path) -> Path:
+    """The demos suite's file: 100 successful scripted pick-and-place episodes (fs1), recorded once."""
+    from tsrl.agents.demos import record_demos, save_demos, summary_line
+
+    path = out_dir / "demos" / f"pick-place-fs1-scripted-{DEMO_EPISODES}.npz"
+    if not path.is_file():
+        demos = record_demos(PICK, DEMO_EPISODES, obs="fs1", seed=0)
+        print(summary_line(demos, save_demos(demos, path)), flush=True)
+    return path
+
+
+def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 2000) -> None:
+    """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread: gradient steps per second of
+    `model.train` on a buffer of 2,000 random-action transitions (batch 256), then env steps per second
+    of `model.learn` with learning (40 gradient steps per 2 episodes). Plain stable-baselines3 DDPG +
+    its HerReplayBuffer vs tsrl's (feature HER) vs tsrl's with 100 demonstrations (BC + Q-filter), and
+    sbx's (JAX) DDPG with tsrl's feature HER buffer where sbx is importable (`pip install sbx-rl`; not
+    a tsrl dependency). Each model is timed after one untimed `train(updates)` (sbx compiles then)."""
+    import time
+
+    import torch as th
+    from stable_baselines3 import DDPG, HerReplayBuffer
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    from tsrl.agents import make_agent, make_vec_env
+
+    th.set_num_threads(1)
+    demos = record_benchmark_demos(out_dir)
+    a = AgentConfig(learning_starts=env_steps)
+
+    def sb3_plain(
+        cfg: TrainConfig, algo: Any = DDPG, policy: Any = "MultiInputPolicy", her: Any = HerReplayBuffer
+    ) -> Any:
+        venv = make_vec_env(cfg)
+        return algo(
+            policy,
+            venv,
+            learning_rate=a.learning_rate,
+            buffer_size=cfg.total_timesteps + 100,
+            learning_starts=a.learning_starts,
+            batch_size=a.batch_size,
+            tau=a.tau,
+            gamma=a.gamma,
+            train_freq=(a.train_freq_episodes, "episode"),
+            gradient_steps=a.gradient_steps,
+            action_noise=NormalActionNoise(np.zeros(4), a.action_noise * np.ones(4)),
+            replay_buffer_class=her,
+            replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+            policy_kwargs={"net_arch": list(a.net_arch)},
+            seed=cfg.seed,
+            device="cpu",
+        )
+
+    variants = {
+        "SB3 DDPG + HerReplayBuffer": (sb3_plain, a),
+        "tsrl DDPG + feature HER": (None, a),
+        "tsrl DDPG + feature HER + demos": (
+            None,
+            AgentConfig(learning_starts=env_steps, demos=DemoConfig(path=str(demos))),
+        ),
+    }
+    try:
+        import sbx
+        from sbx.td3.policies import TD3Policy
+
+        from tsrl.agents.her import FeatureHerReplayBuffer
+
+        variants["sbx (JAX) DDPG + feature HER"] = (
+            lambda cfg: sb3_plain(cfg, sbx.DDPG, TD3Policy, FeatureHerReplayBuffer),
+            a,
+        )
+    except ImportError:
+        print("sbx not installed: its row is left out")
+    print(
+        f"\nlearner speed, {PICK} fs1, seeds {seeds}: {updates} gradient steps timed; {env_steps} env steps with learning"
+    )
+    print(f"{'variant':<34} {'updates/s':>10} {'env steps/s':>12}")
+    for label, (build, agent) in variants.items():
+        rates = []
+        for seed in seeds:
+            cfg = TrainConfig(env_id=PICK, obs="fs1", seed=seed, total_timesteps=3 * env_steps, agent=agent)
+            model = build(cfg) if build is not None else make_agent(cfg, make_vec_env(cfg))
+            model.learn(env_steps)  # random actions fill the buffer; no update yet
+            model.train(gradient_steps=updates, batch_size=a.batch_size)  # untimed: sbx compiles here
+            t0 = time.perf_counter()
+            model.train(gradient_steps=updates, batch_size=a.batch_size)
+            t1 = time.perf_counter()
+            model.learn(env_steps, reset_num_timesteps=False)
+            t2 = time.perf_counter()
+            rates.append((updates / (t1 - t0), env_steps / (t2 - t1)))
+        u, e = np.mean(rates, axis=0)
+        print(f"{label:<34} {u:>10.1f} {e:>12.1f}", flush=True)
 
 
 def _i(x: float) -> str:
@@ -135,29 +259,50 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("suite", choices=["tsrl", "fetch", "her", "all"])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--total-timesteps", type=int, default=6000, help="per run")
-    parser.add_argument("--eval-freq", type=int, default=200, help="env steps between evaluations")
-    parser.add_argument("--eval-episodes", type=int, default=20)
+    parser.add_argument("suite", choices=["tsrl", "fetch", "her", "all", "demos", "speed"])
+    parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
+    parser.add_argument(
+        "--total-timesteps", type=int, default=None, help="per run (default: 6000; demos 50000)"
+    )
+    parser.add_argument(
+        "--eval-freq", type=int, default=None, help="env steps between evaluations (200; demos 2500)"
+    )
+    parser.add_argument("--eval-episodes", type=int, default=None, help="20; demos 100")
+    parser.add_argument(
+        "--no-demos-only", action="store_true", help="demos suite: only the runs without demonstrations"
+    )
     parser.add_argument(
         "--jobs", type=int, default=1, help="runs in parallel (timings: no more than free cores)"
     )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/learning"))
     args = parser.parse_args()
 
+    if args.suite == "speed":
+        speed(args.seeds or [0, 1], args.out_dir)
+        return
+    seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite == "demos" else [0, 1, 2])
+    total, eval_freq, eval_episodes = (
+        given if given is not None else default
+        for given, default in zip(
+            (args.total_timesteps, args.eval_freq, args.eval_episodes),
+            BUDGETS.get(args.suite, BUDGET),
+            strict=True,
+        )
+    )
+    demos = record_benchmark_demos(args.out_dir) if args.suite == "demos" else None
     suites = ["tsrl", "fetch", "her"] if args.suite == "all" else [args.suite]
     cfgs = [
         cfg
         for suite in suites
-        for cfg in configs(suite, args.seeds, args.total_timesteps, args.eval_freq, args.eval_episodes)
+        for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos)
+        if not (args.no_demos_only and cfg.agent.demos.enabled)
     ]
     work = list(
         {(cfg.env_id, cfg.run_name): (cfg, args.out_dir) for cfg in cfgs}.values()
     )  # shared runs once
     print(
-        f"{len(work)} runs, {args.total_timesteps} env steps each, evaluation every {args.eval_freq} env steps "
-        f"on {args.eval_episodes} episodes; agent: {AgentConfig()}",
+        f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
+        f"on {eval_episodes} episodes; agent: {AgentConfig()}",
         flush=True,
     )
     if args.jobs > 1:
@@ -169,9 +314,14 @@ def main() -> None:
     groups: dict[str, list[Path]] = {}
     for (cfg, _), run_dir in zip(work, done, strict=True):
         label = f"{cfg.env_id} obs={cfg.obs} action={cfg.action} algo={cfg.agent.algo} HER={cfg.agent.her.relabel}"
+        if cfg.agent.demos.enabled:
+            d = cfg.agent.demos
+            label += (
+                f" demos={Path(d.path).name} share={d.batch_share} bc={d.bc_weight} q_filter={d.q_filter}"
+            )
         groups.setdefault(label, []).append(run_dir)
     for label, run_dirs in groups.items():
-        summarize(label, run_dirs)
+        summarize(label, run_dirs, train_time=args.suite == "demos")
 
 
 if __name__ == "__main__":

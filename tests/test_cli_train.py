@@ -155,7 +155,7 @@ def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
         (["train", "--net-arch", "64", "x"], "--net-arch"),
         (["train", "--no-such-option", "1"], "unrecognized arguments: --no-such-option 1"),
         (["fly"], "unrecognized arguments: fly"),
-        ([], "missing command; accepted: train, evaluate, render, plot, demo, experiment, report"),
+        ([], "missing command; accepted: train, evaluate, render, plot, demo, demos, experiment, report"),
         (["evaluate"], "missing RUN_DIR"),
         (["evaluate", ".", "--episodes", "0"], "--episodes must be >= 1; got 0"),
         (["render", ".", "--size", "8", "8"], "--size must be at least 16 16; got 8 8"),

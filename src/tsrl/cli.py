@@ -1,12 +1,10 @@
-"""The `tsrl` command line: train, evaluate, render, plot, demo, experiment, report.
+"""The `tsrl` command line: train, evaluate, render, plot, demo, demos, experiment, report.
 
 Built with tyro: a command is a frozen dataclass whose fields are its options (each field's attribute
 docstring its help text, its type and default those of the option) and whose run() does the work;
 COMMANDS maps command names to these classes. `tsrl train`'s options are the fields of
-tsrl.agents.TrainConfig and its nested AgentConfig and HerConfig, so a new config field is a new
-option. A command with subcommands (`tsrl demos record`) is a dataclass whose one field is a Union
-of `Annotated[Sub, tyro.conf.subcommand("record")]` types, marked tyro.conf.OmitSubcommandPrefixes,
-and whose run() calls the chosen one's. Bad input ends with one line on stderr naming what is
+tsrl.agents.TrainConfig and its nested AgentConfig, HerConfig and DemoConfig, so a new config field is
+a new option. A command with one verb (`tsrl demos record`) takes it as a positional Literal field. Bad input ends with one line on stderr naming what is
 accepted, exit code 2.
 """
 
@@ -18,7 +16,7 @@ import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Protocol
+from typing import Annotated, Any, Literal, Protocol
 
 import mujoco
 import numpy as np
@@ -198,6 +196,44 @@ class Demo:
         return 0
 
 
+@dataclass(frozen=True)
+class Demos:
+    """Record demonstration episodes for `tsrl train --demos FILE` (tsrl.agents.demos)."""
+
+    command: Positional[Literal["record"]]
+    """record: a demonstrator's successful episodes into a .npz file (the environment's scripted
+    controller, reach or pick-and-place, or a trained run's policy with --policy)."""
+    out: Path
+    """The .npz file to write."""
+    env: str = "tsrl/UR5ePickPlace-v0"
+    """Environment id (ignored with --policy)."""
+    obs: str = "fs1"
+    """Observation preset or spec of the agent that will train on the demonstrations."""
+    action: str = "taskspace"
+    """Action mode."""
+    episodes: int = 100
+    """Episodes to keep."""
+    policy: Annotated[Path | None, arg(metavar="RUN_DIR")] = None
+    """Record this run's latest usable policy instead of a scripted controller."""
+    seed: int = 0
+    """Seed of the episode seeds."""
+    keep_failed: bool = False
+    """Keep unsuccessful episodes too."""
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1:
+            raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
+
+    def run(self) -> int:
+        from .agents.demos import record_demos, save_demos, summary_line
+
+        demos = record_demos(
+            self.env, self.episodes, self.obs, self.action, self.policy, self.seed, self.keep_failed
+        )
+        print(summary_line(demos, save_demos(demos, self.out)))
+        return 0
+
+
 #: Every `tsrl` command; a new one is a dataclass with run() and an entry here.
 COMMANDS: dict[str, type] = {
     "train": Train,
@@ -205,6 +241,7 @@ COMMANDS: dict[str, type] = {
     "render": Render,
     "plot": Plot,
     "demo": Demo,
+    "demos": Demos,
     **EXPERIMENT_COMMANDS,
 }
 

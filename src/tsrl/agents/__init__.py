@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .config import ALGOS, AgentConfig, HerConfig, TrainConfig
+from .config import ALGOS, AgentConfig, DemoConfig, HerConfig, TrainConfig
 from .run_folder import NotARunFolder, load_config, read_progress
 
 _LAZY = {
@@ -27,6 +27,7 @@ _LAZY = {
 __all__ = (
     "ALGOS",
     "AgentConfig",
+    "DemoConfig",
     "FeatureHerReplayBuffer",
     "HerConfig",
     "NotARunFolder",

@@ -1,4 +1,4 @@
-"""Training configuration: HerConfig, AgentConfig and TrainConfig, frozen and validated on construction.
+"""Training configuration: HerConfig, DemoConfig, AgentConfig and TrainConfig, frozen and validated on construction.
 
 Each field's docstring is its `--help` text: tsrl.cli builds its options from these classes with tyro,
 so a new field is a new option (`arg(...)` annotations name a few: --env, --her, --her-strategy; the
@@ -83,6 +83,37 @@ class HerConfig:
 
 
 @dataclass(frozen=True)
+class DemoConfig:
+    """Learning from demonstrations (Nair et al. 2018): a demonstration buffer, a Q-filtered BC loss."""
+
+    path: Annotated[str | None, arg(name="demos", aliases=("--demos-path",))] = None
+    """Demonstration file (.npz, written by `tsrl demos record`); None: no demonstrations."""
+    batch_share: Annotated[float, arg(name="demos-batch-share")] = 0.125
+    """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay
+    (Nair et al.: 128 of 1024)."""
+    bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
+    """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
+    next to the actor's -mean Q; 0: none (demonstrations are then replay data only)."""
+    q_filter: Annotated[bool, arg(name="demos-q-filter")] = True
+    """Clone a demonstrated action only where the critic rates it above the actor's:
+    Q(s, a_demo) > Q(s, pi(s)) (Nair et al.'s Q-filter)."""
+
+    def __post_init__(self) -> None:
+        if self.path is not None and (not isinstance(self.path, str) or not self.path):
+            raise InvalidConfig(f"demos path must be a file path or None; got {self.path!r}")
+        if isinstance(self.batch_share, bool) or not isinstance(self.batch_share, int | float):
+            raise InvalidConfig(f"demos batch_share must be a number; got {self.batch_share!r}")
+        if not 0 <= self.batch_share < 1:
+            raise InvalidConfig(f"demos batch_share must be in [0, 1); got {self.batch_share}")
+        check_positive("demos bc_weight", self.bc_weight, strict=False)
+
+    @property
+    def enabled(self) -> bool:
+        """Whether the run uses a demonstration file."""
+        return self.path is not None
+
+
+@dataclass(frozen=True)
 class AgentConfig:
     """Off-policy algorithm + HER; defaults are the paper's settings where it gives them."""
 
@@ -124,6 +155,8 @@ class AgentConfig:
     """Normalised inputs are clipped to +-clip_obs (HER paper: 5)."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
+    demos: DemoConfig = field(default_factory=DemoConfig)
+    """Demonstrations (off by default)."""
 
     def __post_init__(self) -> None:
         _choice("algo", self.algo, ALGOS)
@@ -152,6 +185,8 @@ class AgentConfig:
             raise InvalidConfig(f"tau must be in (0, 1]; got {self.tau}")
         if isinstance(self.her, dict):
             object.__setattr__(self, "her", from_dict(HerConfig, self.her))
+        if isinstance(self.demos, dict):
+            object.__setattr__(self, "demos", from_dict(DemoConfig, self.demos))
 
 
 @dataclass(frozen=True)
@@ -250,7 +285,7 @@ class TrainConfig:
         """`<env>__<obs>__<action>__<algo>__s<seed>`, e.g. tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0.
 
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
-        with stable-baselines3's plain HER get a `__her-plain` suffix.
+        with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations `__demos`.
         """
         obs = self.obs
         if obs not in OBS_PRESETS and obs != NATIVE:
@@ -259,6 +294,7 @@ class TrainConfig:
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
         env = f"task-{Path(self.env_id).stem}" if self.is_task_file else self.env_id.replace("/", "-")
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
+        suffix += "__demos" if self.agent.demos.enabled else ""
         return f"{env}__{obs}__{self.action}__{self.agent.algo}__s{self.seed}{suffix}"
 
     def to_dict(self) -> dict[str, Any]:

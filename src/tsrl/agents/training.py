@@ -29,6 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import TrainConfig, from_dict
+from .demos import DEMOS_RECORD, attach_bc_loss, check_demo_record, demo_record
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
 from .plotting import plot_learning_curves
@@ -75,9 +76,12 @@ def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> P
         )
     session = _Session(cfg, run_dir, progress_bar)  # builds the envs first: bad obs/action fail here
     try:
+        demos = demo_record(cfg)  # a bad demonstration file fails here, before the run folder exists
         run_dir.mkdir(parents=True, exist_ok=True)
         with RunLock(run_dir):
             write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
+            if demos is not None:
+                write_json_atomic(run_dir / DEMOS_RECORD, demos)
             session.run(checkpoint=None)
     finally:
         session.close()
@@ -108,6 +112,8 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
         if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
             cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
             write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
+        if checkpoint is None:  # restarts from scratch: the demonstrations must be the recorded ones
+            check_demo_record(run_dir, cfg)
         session = _Session(cfg, run_dir, progress_bar)
         try:
             session.run(checkpoint=checkpoint)
@@ -145,6 +151,8 @@ class _Session:
             episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
             model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
             model.buffer_size = model.replay_buffer.buffer_size
+            if cfg.agent.demos.enabled:  # the demonstrations came back in the replay buffer
+                attach_bc_loss(model, cfg.agent.demos)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
         last_row = truncate_progress(self.run_dir, state.env_steps if checkpoint else -1)

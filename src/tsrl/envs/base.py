@@ -110,6 +110,15 @@ class TaskEnv(gym.Env, EzPickle):
         if success_radius is not None:
             overrides["success"] = dataclasses.replace(task.success, position=success_radius)
         self.task: Task = dataclasses.replace(task, **overrides) if overrides else task
+        #: The action's name: the built-in mode it is (with or without suction), else "task".
+        self.action_mode: str = next(
+            (
+                name
+                for name, preset in ACTION_PRESETS.items()
+                if dataclasses.replace(preset, suction=self.task.action_spec.suction) == self.task.action_spec
+            ),
+            "task",
+        )
         task = self.task
         self.obs_spec = OBS_PRESETS.get(task.observation, task.observation)
         self.ik_iterations = ik_iterations

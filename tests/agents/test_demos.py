@@ -1,0 +1,407 @@
+"""Demonstrations: recorded files, their checks, the demonstration buffer, the Q-filtered BC loss, and
+training with them (checkpoint, kill, resume; bit-identity when no demonstration row is used)."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+from cli_runner import run_tsrl
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env, resume, train
+from tsrl.agents.config import DemoConfig
+from tsrl.agents.demos import (
+    DEMOS_RECORD,
+    DemoFileError,
+    Demonstrations,
+    DemoReplayBuffer,
+    DemoSpec,
+    demo_seeds,
+    load_demos,
+    q_filtered_bc_loss,
+    record_demos,
+    save_demos,
+)
+from tsrl.agents.run_folder import latest_checkpoint
+
+REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"
+
+
+@pytest.fixture(scope="module")
+def reach_demos(tmp_path_factory) -> Path:
+    """6 scripted reach demonstrations (fs1), saved."""
+    path = tmp_path_factory.mktemp("demos") / "reach.npz"
+    return save_demos(record_demos(REACH, 6, obs="fs1", seed=0), path)
+
+
+@pytest.fixture(scope="module")
+def pick_demos() -> Demonstrations:
+    return record_demos(PICK, 3, obs="fs1", seed=0)
+
+
+def tiny(total: int = 200, seed: int = 0, demos: DemoConfig | None = None, **agent: object) -> TrainConfig:
+    """Seconds of training on reach: 100 random steps, then 10 gradient steps every two episodes."""
+    return TrainConfig(
+        obs="fs1",
+        seed=seed,
+        total_timesteps=total,
+        eval_freq=100,
+        eval_episodes=2,
+        checkpoint_freq=100,
+        agent=AgentConfig(
+            learning_starts=100, gradient_steps=10, batch_size=64, demos=demos or DemoConfig(), **agent
+        ),
+    )
+
+
+# -- recording and files ---------------------------------------------------------------------------
+def test_recorded_pick_and_place_demos_replay_exactly_and_succeed(pick_demos, tmp_path):
+    d = pick_demos
+    assert d.n_episodes == 3 and d.episode_steps == 50
+    assert d.observation.shape == (3, 51, 15) and d.actions.shape == (3, 50, 4)
+    assert d.is_success[:, -1].all()
+    assert d.meta["env_id"] == PICK and d.meta["demonstrator"] == "scripted-pick-place"
+    assert set(d.seeds.tolist()) <= set(demo_seeds(0, d.meta["attempted"]))
+    # The stored actions, replayed on a fresh env of the same spec, give the stored observations.
+    env = gym.make(PICK, obs="fs1")
+    for i in range(d.n_episodes):
+        obs, _ = env.reset(seed=int(d.seeds[i]))
+        for t in range(d.episode_steps):
+            for key in ("observation", "achieved_goal", "desired_goal"):
+                np.testing.assert_array_equal(obs[key], getattr(d, key)[i, t])
+            obs, reward, *_ = env.step(d.actions[i, t])
+            assert reward == d.rewards[i, t]
+    # Round trip through the file.
+    loaded = load_demos(save_demos(d, tmp_path / "pick.npz"), DemoSpec.of(env))
+    for name in ("observation", "actions", "rewards", "is_success", "seeds"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(d, name))
+    assert loaded.meta == d.meta
+
+
+def test_failed_episodes_are_dropped_unless_kept(tmp_path):
+    """An untrained policy (a run folder) fails: nothing kept by default, everything with keep_failed."""
+    run_dir = train(tiny(total=100), tmp_path, progress_bar=False)
+    none = record_demos(REACH, 2, policy=run_dir, max_attempts=2)
+    assert none.n_episodes == 0 and none.meta["attempted"] == 2
+    assert none.observation.shape == (0, 51, 15)
+    kept = record_demos(REACH, 2, policy=run_dir, keep_failed=True)
+    assert kept.n_episodes == 2 and not kept.is_success[:, -1].all()
+    assert kept.meta["demonstrator"].startswith("policy:")
+    load_demos(save_demos(none, tmp_path / "none.npz"))  # an empty file is valid
+
+
+def test_cli_records_a_demo_file(tmp_path):
+    out = tmp_path / "reach.npz"
+    result = run_tsrl("demos", "record", "--env", REACH, "--episodes", "2", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "2 episodes" in result.stdout and load_demos(out).n_episodes == 2
+
+
+def corrupt(path: Path, out: Path, **changes: object) -> Path:
+    with np.load(path) as f:
+        arrays = dict(f)
+    for name, value in changes.items():
+        if value is None:
+            del arrays[name]
+        elif callable(value):
+            arrays[name] = value(arrays[name])
+        else:
+            arrays[name] = value
+    np.savez(out, **arrays)
+    return out
+
+
+def with_nan(a: np.ndarray) -> np.ndarray:
+    a = a.copy()
+    a[1, 7, 0] = np.nan
+    return a
+
+
+def other_meta(**changes: str):
+    return lambda meta: np.array(json.dumps(json.loads(str(meta)) | changes))
+
+
+@pytest.mark.parametrize(
+    ("make", "expected"),
+    [
+        (lambda p, t: t / "missing.npz", "no such file"),
+        (lambda p, t: _truncated(p, t / "cut.npz"), "unreadable (truncated or corrupt?)"),
+        (lambda p, t: _write(t / "text.npz", b"not a zip"), "unreadable"),
+        (
+            lambda p, t: corrupt(p, t / "nan.npz", observation=with_nan),
+            "observation holds NaN or inf (episode 1)",
+        ),
+        (lambda p, t: corrupt(p, t / "nokey.npz", actions=None), "no actions"),
+        (lambda p, t: corrupt(p, t / "short.npz", rewards=lambda r: r[:, :-1]), "rewards has shape"),
+        (lambda p, t: corrupt(p, t / "big.npz", actions=lambda a: 2 * a + 1.5), "actions outside [-1, 1]"),
+        (
+            lambda p, t: corrupt(p, t / "env.npz", meta=other_meta(env_id=PICK)),
+            "env_id 'tsrl/UR5ePickPlace-v0' (this run: 'tsrl/UR5eReach-v0')",
+        ),
+        (lambda p, t: corrupt(p, t / "obs.npz", meta=other_meta(obs_spec="position(tcp)")), "obs_spec"),
+        (lambda p, t: corrupt(p, t / "fmt.npz", meta=other_meta(format="x")), "not a tsrl-demos file"),
+    ],
+)
+def test_bad_demo_files_are_one_clear_error(reach_demos, tmp_path, make, expected):
+    path = make(reach_demos, tmp_path)
+    with pytest.raises(DemoFileError, match="demonstration file") as err:
+        load_demos(path, DemoSpec.of(gym.make(REACH, obs="fs1")))
+    assert expected in str(err.value)
+
+
+def test_demos_of_another_observation_spec_are_refused(reach_demos):
+    with pytest.raises(DemoFileError, match=r"obs_spec .*; obs_dim 15 \(this run: 9\)"):
+        load_demos(reach_demos, DemoSpec.of(gym.make(REACH, obs="fs0")))
+
+
+def _truncated(path: Path, out: Path) -> Path:
+    data = path.read_bytes()
+    return _write(out, data[: len(data) // 2])
+
+
+def _write(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--demos", "no/such.npz"], "no such file"),
+        (["--obs", "fs0", "--demos", "{reach}"], "recorded for another environment"),
+    ],
+)
+def test_cli_train_with_a_bad_demo_file_exits_2_without_a_run_folder(reach_demos, tmp_path, args, expected):
+    out = tmp_path / "runs"
+    args = [a.replace("{reach}", str(reach_demos)) for a in args]
+    result = run_tsrl("train", "--out-dir", str(out), "--total-timesteps", "100", "--no-progress", *args)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0] and "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_cli_records_bad_input_as_one_line(tmp_path):
+    result = run_tsrl(
+        "demos", "record", "--env", REACH, "--action", "joint", "--out", str(tmp_path / "x.npz")
+    )
+    assert result.returncode == 2 and "taskspace" in result.stderr and "Traceback" not in result.stderr
+
+
+# -- the demonstration buffer ----------------------------------------------------------------------
+def test_demo_rows_are_relabelled_like_env_relabel(pick_demos):
+    venv = DummyVecEnv([lambda: gym.make(PICK, obs="fs1")])
+    buffer = DemoReplayBuffer(
+        1000, venv.observation_space, venv.action_space, venv, device="cpu", demo_share=0.5
+    )
+    buffer.set_demos(pick_demos)
+    _fill_with_random_episodes(buffer, venv, 2)
+    env = venv.envs[0].unwrapped
+    np.random.seed(2)
+    batch = buffer.sample(256)
+    n = buffer.demo_rows(256)
+    assert n == 128
+    demo = buffer.last_demo_batch
+    assert demo is not None
+    for key in batch.observations:  # the demonstration rows are the last n of the batch
+        assert th.equal(batch.observations[key][-n:], demo.observations[key])
+    n_real = n - int(buffer.demo_buffer.her_ratio * n)
+    d = pick_demos
+    flat_actions = d.actions.reshape(-1, d.actions.shape[-1])
+    flat_obs = {k: getattr(d, k)[:, :-1].reshape(-1, getattr(d, k).shape[-1]) for k in ("observation",)}
+    relabelled = 0
+    for i in range(n):
+        obs = {k: v[i].numpy() for k, v in demo.observations.items()}
+        next_obs = {k: v[i].numpy() for k, v in demo.next_observations.items()}
+        row = _stored_row(flat_obs["observation"], flat_actions, obs, demo.actions[i].numpy(), env)
+        e, t = divmod(row, d.episode_steps)
+        stored = {k: getattr(d, k)[e, t] for k in ("observation", "achieved_goal", "desired_goal")}
+        stored_next = {k: getattr(d, k)[e, t + 1] for k in ("observation", "achieved_goal", "desired_goal")}
+        goal = obs["desired_goal"]
+        if i >= n_real:
+            expected, expected_next = env.relabel(stored, goal), env.relabel(stored_next, goal)
+            relabelled += not np.allclose(goal, stored["desired_goal"])
+            # HER's future strategy: the new goal was achieved later in the same demonstration.
+            assert any(np.array_equal(goal, g) for g in d.achieved_goal[e, t + 1 :])
+        else:
+            expected, expected_next = stored, stored_next
+        for key, value in obs.items():
+            np.testing.assert_allclose(value, expected[key], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(next_obs[key], expected_next[key], rtol=0, atol=1e-12)
+        assert demo.rewards[i, 0].item() == env.compute_reward(next_obs["achieved_goal"], goal, {})
+    assert relabelled > (n - n_real) // 2
+
+
+def _stored_row(observations, actions, obs, action, env) -> int:
+    """Row of the demonstration transition with this action and these goal-independent features."""
+    cols = np.r_[
+        env.observation_structure["position(tcp)"], env.observation_structure["velocity(position(tcp))"]
+    ]
+    same = np.all(observations[:, cols] == obs["observation"][cols], axis=1) & np.all(
+        actions == action, axis=1
+    )
+    rows = np.flatnonzero(same)
+    assert len(rows) >= 1
+    return int(rows[0])
+
+
+def _fill_with_random_episodes(buffer, venv, episodes: int) -> None:
+    venv.seed(0)
+    venv.action_space.seed(0)
+    obs = venv.reset()
+    for _ in range(episodes * 50):
+        action = np.array([venv.action_space.sample()])
+        next_obs, reward, done, infos = venv.step(action)
+        real_next = infos[0]["terminal_observation"] if done[0] else next_obs
+        real_next = {k: np.asarray(v).reshape(1, -1) for k, v in real_next.items()}
+        buffer.add(obs, real_next, action, reward, done, infos)
+        obs = next_obs
+
+
+# -- the Q-filtered BC loss ------------------------------------------------------------------------
+def test_q_filter_masks_rows_where_the_actor_is_rated_higher():
+    actor = th.tensor([[0.0, 0.0], [1.0, 1.0], [0.5, -0.5], [0.2, 0.2]])
+    demo = th.tensor([[1.0, 0.0], [0.0, 0.0], [0.5, 0.5], [0.2, 0.2]])
+    q_demo = th.tensor([[2.0], [1.0], [3.0], [0.0]])
+    q_actor = th.tensor([[1.0], [1.0], [4.0], [-1.0]])  # demo better, tie, actor better, demo better
+    loss, mask = q_filtered_bc_loss(actor, demo, q_demo, q_actor, q_filter=True)
+    assert mask.tolist() == [True, False, False, True]
+    assert loss.item() == pytest.approx((1.0 + 0.0) / 4)  # mean over all 4 rows of the masked errors
+    loss, mask = q_filtered_bc_loss(actor, demo, q_demo, q_actor, q_filter=False)
+    assert mask.all() and loss.item() == pytest.approx((1.0 + 2.0 + 1.0 + 0.0) / 4)
+
+
+@pytest.mark.parametrize("algo", ["ddpg", "td3", "sac"])
+def test_actor_step_follows_the_gradient_of_actor_loss_plus_weighted_bc(reach_demos, algo):
+    weight = 2.5
+    demos = DemoConfig(path=str(reach_demos), batch_share=0.5, bc_weight=weight, q_filter=False)
+    cfg = tiny(demos=demos, algo=algo)
+    model = make_agent(cfg, make_vec_env(cfg))
+    model.learn(150)  # fills the buffer, a first update
+    model.replay_buffer.sample(64, model._vec_normalize_env)
+    demo = model.replay_buffer.last_demo_batch
+    actor, critic = model.actor, model.critic
+    params = [p for p in actor.parameters() if p.requires_grad]
+
+    def pi(obs):
+        return actor(obs, deterministic=True) if algo == "sac" else actor(obs)
+
+    # Expected: grad of (actor_loss + weight * L_BC) with SB3's actor loss stand-in -mean Q1(s, pi(s)).
+    obs = demo.observations
+    actor.optimizer.zero_grad()
+    with th.no_grad():
+        q_demo, q_pi = critic.q1_forward(obs, demo.actions), critic.q1_forward(obs, pi(obs))
+    bc, _ = q_filtered_bc_loss(pi(obs), demo.actions, q_demo, q_pi, q_filter=False)
+    (-critic.q1_forward(obs, pi(obs)).mean() + weight * bc).backward()
+    expected = grads(params)
+    # Actual: the actor loss alone backward, then the hooked optimizer step (grads captured before Adam).
+    actor.optimizer.zero_grad()
+    (-critic.q1_forward(obs, pi(obs)).mean()).backward()
+    captured = []
+    handle = actor.optimizer.register_step_pre_hook(lambda *_: captured.append(grads(params)))
+    actor.optimizer.step()
+    handle.remove()
+    for got, want in zip(captured[0], expected, strict=True):
+        th.testing.assert_close(got, want, rtol=1e-5, atol=1e-7)
+    assert bc.item() > 0
+
+
+def grads(params: list[th.Tensor]) -> list[th.Tensor]:
+    """Copies of the gradients (zeros where a parameter got none, e.g. SAC's log_std)."""
+    return [th.zeros_like(p) if p.grad is None else p.grad.clone() for p in params]
+
+
+# -- training ---------------------------------------------------------------------------------------
+def _parameters_after_updates(cfg: TrainConfig) -> dict[str, th.Tensor]:
+    model = make_agent(cfg, make_vec_env(cfg))
+    model.learn(300)
+    return {k: v.clone() for k, v in model.policy.state_dict().items()}
+
+
+def test_no_demonstration_rows_means_todays_agent_bit_for_bit(reach_demos, tmp_path):
+    empty = save_demos(record_demos(REACH, 0, seed=0), tmp_path / "empty.npz")
+    today = _parameters_after_updates(tiny())
+    variants = [
+        DemoConfig(path=str(empty), batch_share=0.25, bc_weight=1.0),  # a file with zero demonstrations
+        DemoConfig(path=str(reach_demos), batch_share=0.0, bc_weight=0.0),  # demonstrations never drawn
+    ]
+    for demos in variants:
+        got = _parameters_after_updates(tiny(demos=demos))
+        assert got.keys() == today.keys()
+        for key in today:
+            assert th.equal(got[key], today[key]), (demos, key)
+    with_demos = _parameters_after_updates(tiny(demos=DemoConfig(path=str(reach_demos))))
+    assert not all(th.equal(with_demos[k], today[k]) for k in today)  # the test can fail
+
+
+def _buffer(run_dir: Path):
+    with open(latest_checkpoint(run_dir) / "replay_buffer.pkl", "rb") as f:
+        return pickle.load(f)
+
+
+def test_training_with_demos_is_killed_and_resumes_with_the_demo_buffer_intact(reach_demos, tmp_path):
+    demos = load_demos(reach_demos)
+    cfg = tiny(total=2000, demos=DemoConfig(path=str(reach_demos)))
+    run_dir = tmp_path / cfg.run_name
+    assert run_dir.name.endswith("__s0__demos")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tsrl.cli", "train", "--out-dir", str(tmp_path), "--demos", str(reach_demos),
+         "--total-timesteps", "2000", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
+         "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    end = time.monotonic() + 90
+    while latest_checkpoint(run_dir) is None or int(latest_checkpoint(run_dir).name[5:]) < 200:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < end
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate()
+    record = json.loads((run_dir / DEMOS_RECORD).read_text())
+    assert (
+        record["path"] == str(reach_demos.resolve())
+        and record["episodes"] == 6
+        and len(record["sha256"]) == 64
+    )
+    resume(run_dir, total_timesteps=500, progress_bar=False)
+    buffer = _buffer(run_dir)
+    assert isinstance(buffer, DemoReplayBuffer) and buffer.pos == 500
+    stored = buffer.demo_buffer
+    assert stored.n_stored == demos.n_transitions
+    np.testing.assert_array_equal(stored.actions[:, 0], demos.actions.reshape(-1, demos.actions.shape[-1]))
+    np.testing.assert_array_equal(
+        stored.observations["observation"][:, 0], demos.observation[:, :-1].reshape(-1, 15)
+    )
+    # The resumed session trained with the BC loss: TensorBoard has train/bc_loss after the kill.
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    steps = []
+    for events in (run_dir / "tb").glob("events.out.tfevents*"):
+        acc = EventAccumulator(str(events))
+        acc.Reload()
+        if "train/bc_loss" in acc.Tags()["scalars"]:
+            steps += [e.step for e in acc.Scalars("train/bc_loss")]
+    assert max(steps) == 500
+
+
+def test_a_changed_demo_file_stops_a_restart_from_scratch(reach_demos, tmp_path):
+    copy = tmp_path / "demos.npz"
+    copy.write_bytes(reach_demos.read_bytes())
+    cfg = tiny(total=100, demos=DemoConfig(path=str(copy)))
+    run_dir = train(cfg, tmp_path, progress_bar=False)
+    shutil.rmtree(run_dir / "checkpoints")  # as if killed before the first checkpoint
+    save_demos(record_demos(REACH, 1, seed=5), copy)
+    with pytest.raises(DemoFileError, match="changed since the run started"):
+        resume(run_dir, progress_bar=False)
