@@ -7,6 +7,8 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py all      # the three above
     python benchmarks/learning.py demos    # tsrl/UR5ePickPlace-v0 (fs1) with 100 scripted demonstrations
                                            # vs without, same seeds: 5 seeds, 50,000 env steps, 100 eval episodes
+    python benchmarks/learning.py panda    # tsrl/PandaReach-v0 (fs1) beside tsrl/UR5eReach-v0 (fs1), same seeds:
+                                           # every Panda seed at >= 95% within 2x the UR5e's env steps?
     python benchmarks/learning.py speed    # learner speed: gradient steps/s, plain SB3 DDPG + HER vs tsrl's
                                            # feature HER vs with demonstrations (BC + Q-filter)
 
@@ -41,6 +43,7 @@ from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 THRESHOLDS = (0.5, 0.9, 0.95)
 PICK = "tsrl/UR5ePickPlace-v0"
+PANDA = "tsrl/PandaReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
 BUDGETS = {"demos": (50_000, 2_500, 100)}
 BUDGET = (6_000, 200, 20)
@@ -64,6 +67,12 @@ def configs(
         ]
     if suite == "tsrl":
         return [TrainConfig(obs="fs1", seed=s, **common) for s in seeds]
+    if suite == "panda":
+        return [
+            TrainConfig(env_id=env, obs="fs1", seed=s, **common)
+            for env in (PANDA, "tsrl/UR5eReach-v0")
+            for s in seeds
+        ]
     if suite == "fetch":
         agent = AgentConfig(her=HerConfig(relabel="plain"))  # Fetch has no goal-dependent features
         return [
@@ -89,7 +98,9 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
         register_fetch_envs()
     from tsrl.agents.training import resume, train
 
-    parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place"}.get(cfg.env_id, "reach")
+    parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place", PANDA: "panda-reach"}.get(
+        cfg.env_id, "reach"
+    )
     run_dir = parent / cfg.run_name
     checkpoint = latest_checkpoint(run_dir)
     if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
@@ -259,7 +270,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("suite", choices=["tsrl", "fetch", "her", "all", "demos", "speed"])
+    parser.add_argument("suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed"])
     parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
     parser.add_argument(
         "--total-timesteps", type=int, default=None, help="per run (default: 6000; demos 50000)"
@@ -322,6 +333,24 @@ def main() -> None:
         groups.setdefault(label, []).append(run_dir)
     for label, run_dirs in groups.items():
         summarize(label, run_dirs, train_time=args.suite == "demos")
+    if args.suite == "panda":
+        panda_within_twice_ur5e(groups)
+
+
+def panda_within_twice_ur5e(groups: dict[str, list[Path]]) -> None:
+    """Prints whether every Panda seed reached 95% within 2x the env steps the UR5e needed (the mean
+    over the UR5e seeds of their first evaluation at 95%)."""
+    steps = {
+        label.split()[0]: [first_reaching(read_progress(d), 0.95)[0] for d in run_dirs]
+        for label, run_dirs in groups.items()
+    }
+    ur5e, panda = np.array(steps["tsrl/UR5eReach-v0"]), np.array(steps[PANDA])
+    limit = 2 * float(np.mean(ur5e))
+    ok = bool(np.all(np.isfinite(panda)) and np.all(panda <= limit))
+    print(
+        f"\nUR5e env steps to 95%: {', '.join(_i(x) for x in ur5e)} (mean {_f(np.mean(ur5e))}); 2x = {limit:.0f}\n"
+        f"Panda env steps to 95%: {', '.join(_i(x) for x in panda)}: every seed within 2x: {'yes' if ok else 'no'}"
+    )
 
 
 if __name__ == "__main__":
