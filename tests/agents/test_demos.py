@@ -28,6 +28,7 @@ from tsrl.agents.demos import (
     Demonstrations,
     DemoReplayBuffer,
     DemoSpec,
+    demo_record,
     demo_seeds,
     load_demos,
     q_filtered_bc_loss,
@@ -100,6 +101,26 @@ def test_failed_episodes_are_dropped_unless_kept(tmp_path):
     assert kept.n_episodes == 2 and not kept.is_success[:, -1].all()
     assert kept.meta["demonstrator"].startswith("policy:")
     load_demos(save_demos(none, tmp_path / "none.npz"))  # an empty file is valid
+
+
+def test_a_policy_trained_on_a_task_file_records_demos_its_runs_accept(tmp_path):
+    import dataclasses
+
+    from tsrl.envs.tasks import builtin_task_path
+
+    task = tmp_path / "reach.toml"
+    task.write_text(
+        builtin_task_path("UR5eReach-v0").read_text().replace('name = "UR5eReach-v0"', 'name = "R"')
+    )
+    cfg = dataclasses.replace(tiny(total=100), env_id=str(task), action="task")
+    run_dir = train(cfg, tmp_path / "runs", progress_bar=False)
+    demos = record_demos(str(task), 2, policy=run_dir, keep_failed=True)
+    assert demos.n_episodes == 2 and demos.meta["env_id"] == "tsrl/Task-v0"
+    path = save_demos(demos, tmp_path / "task.npz")
+    with_demos = dataclasses.replace(
+        cfg, agent=dataclasses.replace(cfg.agent, demos=DemoConfig(path=str(path)))
+    )
+    assert demo_record(with_demos)["episodes"] == 2
 
 
 def test_cli_records_a_demo_file(tmp_path):

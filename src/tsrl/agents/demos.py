@@ -446,7 +446,8 @@ def record_demos(
                 "pass --policy RUN_DIR to record a trained policy"
             )
         demonstrator = SCRIPTED[env_id](env_id, action)
-    env = gym.make(env_id, obs=obs, action=action)
+    run = TrainConfig(env_id=env_id, obs=obs, action=action)  # a registered id or a task file
+    env = gym.make(run.gym_id, **run.env_kwargs)
     spec = DemoSpec.of(env)
     t = int(env.spec.max_episode_steps)
     attempts = max_attempts if max_attempts is not None else 10 * episodes
@@ -705,7 +706,7 @@ def demo_record(cfg: TrainConfig) -> dict[str, Any] | None:
     if not cfg.agent.demos.enabled:
         return None
     path = Path(cfg.agent.demos.path).resolve()  # type: ignore[arg-type]
-    env = gym.make(cfg.env_id, **cfg.env_kwargs)
+    env = gym.make(cfg.gym_id, **cfg.env_kwargs)
     try:
         demos = load_demos(path, DemoSpec.of(env))
     finally:
