@@ -27,10 +27,9 @@ from tyro.conf import Positional, arg
 from .agents.config import TrainConfig, check_env_id
 from .agents.run_folder import check_not_locked, load_config
 from .assets import SCENES, load_model
-from .assets.ur5e import HOME_Q, JOINT_LIMITS
 from .exceptions import InvalidConfig, TsrlError
 from .experiments.cli import EXPERIMENT_COMMANDS
-from .kinematics import forward_kinematics
+from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 
 RunDir = Annotated[Path, arg(metavar="RUN_DIR")]
 
@@ -247,7 +246,7 @@ COMMANDS: dict[str, type] = {
 
 
 def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) -> list[Path]:
-    """Renders `scene` at the home pose and at `n_random` seeded random poses; returns the PNG paths."""
+    """Renders `scene` at its home keyframe and at `n_random` seeded random poses; returns the PNG paths."""
     from PIL import Image
 
     from .rendering import SceneRenderer
@@ -255,9 +254,12 @@ def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) 
     model = load_model(scene)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(seed)
+    qpos = arm_qpos_indices(model)  # the arm's joints (every hinge and slide joint)
+    home = model.key_qpos[name_to_id(model, "key", "home")][qpos] if model.nkey else model.qpos0[qpos]
+    limits = joint_limits(model)
     # Random poses near home (+-0.6 rad per joint) so that the arm stays in view above the table.
-    poses = [("home", HOME_Q)] + [
-        (f"random_{i}", np.clip(HOME_Q + rng.uniform(-0.6, 0.6, 6), *JOINT_LIMITS.T)) for i in range(n_random)
+    poses = [("home", home)] + [
+        (f"random_{i}", np.clip(home + rng.uniform(-0.6, 0.6, len(home)), *limits.T)) for i in range(n_random)
     ]
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
