@@ -133,31 +133,3 @@ def test_random_goals_in_the_box_are_reached_cup_down(panda_reach_model, rng):
         assert np.all(q >= JOINT_LIMITS[:, 0]) and np.all(q <= JOINT_LIMITS[:, 1])
         np.testing.assert_allclose(data.site_xpos[tcp], goal, atol=1e-6, err_msg=f"goal {goal}")
         np.testing.assert_allclose(data.site_xmat[tcp].reshape(3, 3)[:, 2], [0, 0, -1], atol=1e-6)
-
-
-@pytest.mark.parametrize("suction_on", [True, False])
-def test_suction_lifts_the_box_only_when_on(suction_on):
-    model = load_model("panda_pick_place")
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, name_to_id(model, "key", "home"))
-    box = name_to_id(model, "body", "box")
-    mujoco.mj_forward(model, data)
-    box_xy = data.xpos[box][:2].copy()
-    scratch = mujoco.MjData(model)
-    scratch.qpos[:] = data.qpos
-    above = cup_down_ik(model, scratch, np.array([*box_xy, 0.10]))
-    contact = cup_down_ik(model, scratch, np.array([*box_xy, 0.038]), q0=above)  # 2 mm into the box top
-    data.qpos[:NQ] = above
-    suction = name_to_id(model, "actuator", "suction")
-
-    def move_to(q, seconds, suction_value):
-        data.ctrl[:NQ] = q
-        data.ctrl[suction] = suction_value
-        for _ in range(round(seconds / model.opt.timestep)):
-            mujoco.mj_step(model, data)
-
-    move_to(above, 0.3, 0.0)
-    move_to(contact, 0.5, 1.0 if suction_on else 0.0)
-    move_to(above, 0.8, 1.0 if suction_on else 0.0)
-    lifted = data.xpos[box][2] > 0.07
-    assert lifted == suction_on, f"box height {data.xpos[box][2]:.3f} m"
