@@ -33,7 +33,7 @@ from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
 from . import statistics as st
-from .config import EXPERIMENT_FILE, Comparison, Key, config_labels
+from .config import EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
 from .plots import plot_curves, plot_profile
 from .runner import ERROR_FILE
 from .statistics import THRESHOLDS
@@ -117,7 +117,7 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
         for r in read_progress(run_dir):
             rows.append(
                 {
-                    "env": cfg.env_id,
+                    "env": env_label(cfg.env_id),
                     "obs": cfg.obs,
                     "action": cfg.action,
                     "algo": cfg.agent.algo,

@@ -308,8 +308,10 @@ def config_labels(keys: list[Key]) -> list[str]:
     """Short labels naming only what differs between configurations (obs alone if nothing does); a task
     file in the env axis is named by its file name without the folder and suffix."""
     varying = [i for i in range(len(keys[0])) if len({k[i] for k in keys}) > 1] or [1]
+    return [" / ".join(env_label(k[i]) for i in varying) for k in keys]
 
-    def short(value: str) -> str:
-        return Path(value).stem if value.endswith(".toml") else value
 
-    return [" / ".join(short(k[i]) for i in varying) for k in keys]
+def env_label(env: str) -> str:
+    """An env axis value as reports name it: a task file by its file name without folder and suffix
+    (results stay free of machine-specific paths), anything else as it is."""
+    return Path(env).stem if env.endswith(".toml") else env

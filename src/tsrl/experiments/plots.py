@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..agents.plotting import save_success_plot
-from .config import config_labels
+from .config import config_labels, env_label
 from .statistics import THRESHOLDS
 
 if TYPE_CHECKING:
@@ -49,7 +49,7 @@ def describe(curves: list[Curve]) -> str:
     def joined(values: set) -> str:
         return "/".join(map(str, sorted(values)))
 
-    envs = joined({c.key[0].removeprefix("tsrl/") for c in curves})
+    envs = joined({env_label(c.key[0]).removeprefix("tsrl/") for c in curves})
     algos = joined({c.key[3].upper() for c in curves})
     seeds = {len(c.seeds) for c in curves}
     n = f"{min(seeds)}-{max(seeds)}" if len(seeds) > 1 else str(seeds.pop())
