@@ -22,9 +22,6 @@ from ..taskmaps.relabel import FrameMove, FramePose, check_relabelable
 from .scenes import TARGET_SITE
 from .tasks import Penalty, Task
 
-#: The frame that carries the desired goal: the site of the `target` mocap body.
-GOAL_FRAME = TARGET_SITE
-
 #: Named observation specs: the paper's configurations (Table I) for reach, and its pick-and-place
 #: observation. A task's `observation` (or the env's `obs=`) may name them, alone or inside a spec.
 OBS_PRESETS: dict[str, str] = {
@@ -97,7 +94,7 @@ class StepPlan:
             raise InvalidConfig(f"goal.map {task.goal.map!r} has an orientation: give [goal.orientation]")
         if not self.pose_goal and task.goal.orientation is not None:
             raise InvalidConfig('[goal.orientation] needs a pose goal: map = "position(f), quaternion(f)"')
-        desired_spec = f"position({GOAL_FRAME})" + (f", quaternion({GOAL_FRAME})" if self.pose_goal else "")
+        desired_spec = f"position({TARGET_SITE})" + (f", quaternion({TARGET_SITE})" if self.pose_goal else "")
         desired = parse_spec(desired_spec, model)
         penalty_maps = [_penalty_map(p, model, joints) for p in task.success.penalties]
         self.success = task.success
@@ -127,7 +124,7 @@ class StepPlan:
             (self.goal_slices[m.spec].start, p) for m, p in zip(penalty_maps, task.success.penalties)
         ]
         self._simple = not self.pose_goal and not self.penalties  # goal = one position: the fast rules
-        target_body = model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, GOAL_FRAME)]
+        target_body = model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, TARGET_SITE)]
         self.target_quat = model.body_quat[target_body].copy()  # the target's orientation in the scene
         check_relabelable(self.obs_map, self._trial_move())
 
@@ -198,7 +195,7 @@ class StepPlan:
         else:
             old_quat = new_quat = self.target_quat
             known = FramePose(achieved[..., :3], None)
-        return FrameMove(GOAL_FRAME, delta, old_quat, new_quat, self.pose_goal, {self.goal_frame: known})
+        return FrameMove(TARGET_SITE, delta, old_quat, new_quat, self.pose_goal, {self.goal_frame: known})
 
     def _trial_move(self) -> FrameMove:
         z = np.zeros(self.goal_dim)
@@ -217,9 +214,9 @@ def _goal_frame(achieved: Stack, spec: str) -> str:
             "for one frame f"
         )
     frame = parts[0].f.name
-    if frame == GOAL_FRAME:
+    if frame == TARGET_SITE:
         raise InvalidConfig(
-            f"goal.map {spec!r} reads the goal marker {GOAL_FRAME!r} itself; name the TCP or an object"
+            f"goal.map {spec!r} reads the goal marker {TARGET_SITE!r} itself; name the TCP or an object"
         )
     return frame
 
@@ -229,6 +226,6 @@ def _penalty_map(penalty: Penalty, model: mujoco.MjModel, joints: tuple[str, ...
     if stack.dim != 1 or isinstance(stack.parts[0], Velocity):
         raise InvalidConfig(f"penalty map {penalty.map!r} must be one scalar position-level map (dim 1)")
     m = stack.parts[0]
-    if GOAL_FRAME in m.frames:
-        raise InvalidConfig(f"penalty map {penalty.map!r} reads the goal {GOAL_FRAME!r}; penalties must not")
+    if TARGET_SITE in m.frames:
+        raise InvalidConfig(f"penalty map {penalty.map!r} reads the goal {TARGET_SITE!r}; penalties must not")
     return m

@@ -128,19 +128,6 @@ def _quat(name: str, task_map: TaskMap, move: FrameMove, new: bool = True) -> np
     return pose.quat
 
 
-def _pos(name: str, task_map: TaskMap, move: FrameMove) -> np.ndarray:
-    if name == WORLD:
-        return np.zeros(3)
-    pose = move.known.get(name)
-    if pose is None or pose.pos is None:
-        raise NotRelabelable(
-            task_map.spec,
-            move.frame,
-            f"it needs the position of frame {name!r}, which the goal does not carry",
-        )
-    return pose.pos
-
-
 def _axis(quat: np.ndarray, axis: int) -> np.ndarray:
     return quaternion_to_rotation(quat)[..., :, axis]
 
