@@ -91,6 +91,20 @@ def test_recorded_pick_and_place_demos_replay_exactly_and_succeed(pick_demos, tm
     assert loaded.meta == d.meta
 
 
+def test_scripted_pick_and_place_acts_in_the_papers_action_holding_the_start_orientation():
+    """taskspace_orient (TCP step, scalar products x.x, y.y, z.z, suction): the scripted controller
+    holds the products at their start values (the diagonal of the TCP's rotation matrix at reset,
+    read from MuJoCo) and still picks and places."""
+    d = record_demos(PICK, 3, obs="pick_phi", action="taskspace_orient")
+    assert d.n_episodes == 3 and d.meta["attempted"] == 3 and d.actions.shape == (3, 50, 7)
+    env = gym.make(PICK, obs="pick_phi", action="taskspace_orient").unwrapped
+    env.reset(seed=int(d.seeds[0]))
+    rotation = env.data.site("tcp").xmat.reshape(3, 3)  # columns: TCP axes in world
+    np.testing.assert_allclose(d.actions[0, :, 3:6], np.tile(np.diag(rotation), (50, 1)), atol=1e-6)
+    assert set(np.unique(d.actions[0, :, 6])) == {-1.0, 1.0}  # suction off, on (and off again)
+    env.close()
+
+
 def test_failed_episodes_are_dropped_unless_kept(tmp_path):
     """An untrained policy (a run folder) fails: nothing kept by default, everything with keep_failed."""
     run_dir = train(tiny(total=100), tmp_path, progress_bar=False)

@@ -60,6 +60,7 @@ from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from torch.utils.hooks import RemovableHandle
 
+from ..envs.actions import ACTION_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
 from .config import DemoConfig, TrainConfig
 from .her import FeatureHerReplayBuffer
@@ -276,6 +277,10 @@ class Demonstrator(Protocol):
         """Releases what the demonstrator holds (environments)."""
 
 
+#: Action modes the scripted demonstrators act in; in taskspace_orient they hold the start orientation.
+SCRIPTED_ACTIONS: tuple[str, ...] = ("taskspace", "taskspace_orient")
+
+
 class _ShadowController:
     """A controller that reads positions from a second env of the same id, stepped in lockstep.
 
@@ -287,22 +292,34 @@ class _ShadowController:
     spec: str = ""
 
     def __init__(self, env_id: str, action: str):
-        if action != "taskspace":
-            raise InvalidConfig(f"the scripted demonstrators act in action mode 'taskspace'; got {action!r}")
-        self.env = gym.make(env_id, obs=self.spec, action=action)
+        if action not in SCRIPTED_ACTIONS:
+            raise InvalidConfig(
+                f"the scripted demonstrators act in action modes {', '.join(SCRIPTED_ACTIONS)}; got {action!r}"
+            )
+        # Parts after the TCP position (taskspace_orient's scalar products, absolute parts) are held at
+        # their start values: the shadow env observes them; their action is (y - center) / half_range.
+        self.held = ACTION_PRESETS[action].parts[1:]
+        spec = ", ".join([self.spec, *(part.map for part in self.held)])
+        self.env = gym.make(env_id, obs=spec, action=action)
         self.slices = self.env.unwrapped.observation_structure
         self.max_step = float(self.env.unwrapped.task.action_spec.parts[0].step)
         self.obs: dict[str, np.ndarray] = {}
+        self.hold = np.zeros(0)
 
     def reset(self, seed: int) -> None:
         self.obs, _ = self.env.reset(seed=seed)
+        y = self.obs["observation"]
+        held = [(y[self.slices[p.map]] - np.asarray(p.center)) / np.asarray(p.half_range) for p in self.held]
+        self.hold = np.concatenate([np.zeros(0), *held])
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         for key in ("achieved_goal", "desired_goal"):
             if not np.array_equal(obs[key], self.obs[key]):
                 raise RuntimeError(f"{self.name}: its shadow env diverged from the recording env ({key})")
         positions = self.obs["observation"]
-        action = self.control({name: positions[s] for name, s in self.slices.items()}).astype(np.float32)
+        action = self.control({name: positions[s] for name, s in self.slices.items()})
+        action = np.concatenate([action[:3], self.hold, action[3:]])  # position, held parts, suction
+        action = action.astype(np.float32)
         self.obs, *_ = self.env.step(action)
         return action
 
