@@ -80,6 +80,14 @@ def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
         ("[agent.her]\nstrategy = 'past'", ["[agent]", "unknown her strategy 'past'", "future"]),
         ("agent = 3", ["agent must be a table"]),
         ("obs = [", ["not valid TOML"]),
+        ("[demos]\nepisodes = 0", ["[demos] episodes must be an integer >= 1; got 0"]),
+        ("[demos]\nseed = 1", ["[demos]", "missing", "episodes"]),
+        ('[demos]\nepisodes = 5\n[agent.demos]\npath = "d.npz"', ["leave [agent.demos] path unset"]),
+        ('action = ["joint"]\n[demos]\nepisodes = 5', ["action 'joint'", "taskspace, taskspace_orient"]),
+        (
+            'env = ["tsrl/UR5ePoseReach-v0"]\n[demos]\nepisodes = 5',
+            ["no scripted demonstrator", "tsrl/UR5eReach-v0"],
+        ),
     ],
 )
 def test_malformed_file_error_names_the_field_and_the_accepted_values(text, expected, tmp_path):

@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 from cli_runner import run_tsrl
 
+from tsrl.agents.demos import load_demos, sha256
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import Comparison, load_experiment
@@ -135,6 +136,41 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
     result = run_tsrl("plot", str(fs1_s0), str(fs1_s1), str(baseline_s0), "--out", str(tmp_path / "runs.png"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "runs.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_demos_are_recorded_once_per_configuration_and_every_run_trains_with_them(tmp_path):
+    definition = tmp_path / "tiny-demos.toml"
+    definition.write_text(
+        TINY.replace("seeds = [0, 1]", "seeds = [0]") + "\n[demos]\nepisodes = 2\nseed = 3\n"
+    )
+    exp = load_experiment(definition)
+    out = io.StringIO()
+    outcomes = run_experiment(exp, tmp_path / "results", workers=2, stream=out)
+    assert [o.status for o in outcomes] == ["trained", "trained"], [o.error for o in outcomes]
+    exp_dir = tmp_path / "results" / "tiny-demos"
+    files = sorted((exp_dir / "demos").glob("*.npz"))
+    assert [f.name for f in files] == [
+        "tsrl-UR5eReach-v0__baseline__taskspace.npz",
+        "tsrl-UR5eReach-v0__fs1__taskspace.npz",
+    ]
+    assert out.getvalue().count("recording 2 demonstrations") == 2
+    for cfg in exp.runs(exp_dir.resolve()):
+        run_dir = exp_dir / cfg.run_name
+        assert cfg.run_name.endswith("__demos") and progress(run_dir) == EXPECTED_ROWS
+        record = json.loads((run_dir / "demos.json").read_text())
+        demos = load_demos(cfg.agent.demos.path)
+        assert record["sha256"] == sha256(cfg.agent.demos.path) and record["episodes"] == 2
+        assert demos.meta["obs"] == cfg.obs and demos.meta["recording_seed"] == 3
+    # A second call skips the finished runs and records nothing again.
+    mtimes = [f.stat().st_mtime_ns for f in files]
+    again = io.StringIO()
+    assert [o.status for o in run_experiment(exp, tmp_path / "results", stream=again)] == ["skipped"] * 2
+    assert "recording" not in again.getvalue() and [f.stat().st_mtime_ns for f in files] == mtimes
+    # The arms are the observations alone: demonstrations on in every run are not a variant.
+    write_report(exp_dir)
+    with open(exp_dir / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert {(r["obs"], r["variant"]) for r in rows} == {("fs1", ""), ("baseline", "")}
 
 
 def test_experiment_on_a_local_ray_instance(tmp_path):

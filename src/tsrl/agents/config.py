@@ -287,15 +287,20 @@ class TrainConfig:
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations `__demos`.
         """
+        suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
+        suffix += "__demos" if self.agent.demos.enabled else ""
+        return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
+
+    @property
+    def env_name(self) -> str:
+        """`<env>__<obs>__<action>`, the environment part of `run_name` (file-name safe)."""
         obs = self.obs
         if obs not in OBS_PRESETS and obs != NATIVE:
             import hashlib
 
             obs = "spec-" + hashlib.sha1(obs.encode()).hexdigest()[:8]
         env = f"task-{Path(self.env_id).stem}" if self.is_task_file else self.env_id.replace("/", "-")
-        suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
-        suffix += "__demos" if self.agent.demos.enabled else ""
-        return f"{env}__{obs}__{self.action}__{self.agent.algo}__s{self.seed}{suffix}"
+        return f"{env}__{obs}__{self.action}"
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -304,7 +309,7 @@ class TrainConfig:
 def from_dict(cls: type, data: dict[str, Any]) -> Any:
     """Builds config dataclass `cls` from a (JSON) dict, nested dataclasses included; validates it.
 
-    Unknown keys are an error naming the accepted ones.
+    Unknown or missing (required) keys are an error naming the accepted ones.
     """
     if not isinstance(data, dict):
         raise InvalidConfig(f"{cls.__name__} must be a mapping; got {type(data).__name__}")
@@ -312,6 +317,14 @@ def from_dict(cls: type, data: dict[str, Any]) -> Any:
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise InvalidConfig(f"unknown {cls.__name__} keys {unknown}; accepted: {', '.join(fields)}")
+    required = dataclasses.MISSING
+    missing = [
+        n
+        for n, f in fields.items()
+        if n not in data and f.default is required and f.default_factory is required
+    ]
+    if missing:
+        raise InvalidConfig(f"missing {cls.__name__} keys {missing}; accepted: {', '.join(fields)}")
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
     for name, value in data.items():

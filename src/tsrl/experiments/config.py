@@ -22,6 +22,8 @@ EXPERIMENTS_DIR = "experiments"
 SUFFIX = ".toml"
 #: The validated ExperimentConfig, written into the experiment's results folder by each run of it.
 EXPERIMENT_FILE = "experiment.json"
+#: Folder of an experiment's recorded demonstrations ([demos]), inside its results folder.
+DEMOS_DIR = "demos"
 
 Key = tuple[str, str, str, str, str]
 """A configuration: (env, obs, action, algo, variant); its runs differ by seed. The variant names
@@ -71,6 +73,24 @@ class Comparison:
 
 
 @dataclass(frozen=True)
+class DemoRecipe:
+    """Scripted demonstrations an experiment records once per (env, obs, action), before its runs, into
+    `<experiment dir>/demos/<env>__<obs>__<action>.npz`; every run of that configuration trains with
+    them (`[agent.demos]` sets batch share, BC weight and Q-filter)."""
+
+    episodes: int
+    """Successful episodes to record (the env's scripted demonstrator, tsrl.agents.demos.SCRIPTED)."""
+    seed: int = 0
+    """Recording seed: the episodes' seeds are drawn from their own stream (demo_seeds)."""
+
+    def __post_init__(self) -> None:
+        for name, low in (("episodes", 1), ("seed", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InvalidConfig(f"{name} must be an integer >= {low}; got {value!r}")
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     """A grid of training runs: env x obs x action x algo x seeds, with one budget and one evaluation
     schedule. Each list-valued field is an axis of the grid; `runs()` expands it."""
@@ -100,6 +120,8 @@ class ExperimentConfig:
     agent: AgentConfig = field(default_factory=AgentConfig)
     """Settings shared by every run (the file's [agent] table overrides AgentConfig's defaults); its
     `algo` is replaced by each grid point's."""
+    demos: DemoRecipe | None = None
+    """Demonstrations every run trains with (the file's [demos] table), recorded by the experiment."""
     comparisons: tuple[Comparison, ...] = ()
     """Pre-registered comparisons (the file's [[comparisons]] tables), reported with effect, interval,
     Holm-adjusted p-value, power and verdict by `tsrl report`."""
@@ -127,6 +149,7 @@ class ExperimentConfig:
             object.__setattr__(self, axis, tuple(values))
         if isinstance(self.agent, dict):
             object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
+        self._check_demos()
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
         self._check_comparisons()
 
@@ -165,11 +188,41 @@ class ExperimentConfig:
             comparisons.append(c)
         object.__setattr__(self, "comparisons", tuple(comparisons))
 
-    def runs(self) -> list[TrainConfig]:
+    def _check_demos(self) -> None:
+        if isinstance(self.demos, dict):
+            try:
+                object.__setattr__(self, "demos", from_dict(DemoRecipe, self.demos))
+            except InvalidConfig as err:
+                raise InvalidConfig(f"[demos] {err}") from None
+        if self.demos is None:
+            return
+        if not isinstance(self.demos, DemoRecipe):
+            raise InvalidConfig(f"demos must be a table ([demos]) with episodes and seed; got {self.demos!r}")
+        if self.agent.demos.path is not None:
+            raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
+        from ..agents.demos import SCRIPTED, SCRIPTED_ACTIONS
+
+        for env in self.env:
+            if env not in SCRIPTED:
+                raise InvalidConfig(
+                    f"[demos]: no scripted demonstrator for env {env!r}; scripted: {', '.join(SCRIPTED)}"
+                )
+        for action in self.action:
+            if action not in SCRIPTED_ACTIONS:
+                raise InvalidConfig(
+                    f"[demos]: the scripted demonstrators do not act in action {action!r}; "
+                    f"accepted: {', '.join(SCRIPTED_ACTIONS)}"
+                )
+
+    def runs(self, exp_dir: Path | None = None) -> list[TrainConfig]:
         """One TrainConfig per grid point, seed-major (every configuration's seed 0 first), so that a
-        partial experiment already compares all configurations."""
-        return [
-            TrainConfig(
+        partial experiment already compares all configurations. With [demos], each run's demonstration
+        file is `demo_file(exp_dir, cfg)` (exp_dir defaults to ./<name>)."""
+        runs = []
+        for seed, env, obs, action, algo in itertools.product(
+            self.seeds, self.env, self.obs, self.action, self.algo
+        ):
+            cfg = TrainConfig(
                 env_id=env,
                 obs=obs,
                 action=action,
@@ -180,13 +233,24 @@ class ExperimentConfig:
                 checkpoint_freq=self.checkpoint_freq,
                 agent=dataclasses.replace(self.agent, algo=algo),
             )
-            for seed, env, obs, action, algo in itertools.product(
-                self.seeds, self.env, self.obs, self.action, self.algo
-            )
-        ]
+            if self.demos is not None:
+                path = str(demo_file(exp_dir if exp_dir is not None else Path(self.name), cfg))
+                cfg = dataclasses.replace(
+                    cfg,
+                    agent=dataclasses.replace(
+                        cfg.agent, demos=dataclasses.replace(cfg.agent.demos, path=path)
+                    ),
+                )
+            runs.append(cfg)
+        return runs
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+
+def demo_file(exp_dir: Path, cfg: TrainConfig) -> Path:
+    """Where an experiment keeps the recorded demonstrations of `cfg`'s env, obs and action."""
+    return exp_dir / DEMOS_DIR / f"{cfg.env_name}.npz"
 
 
 #: Keys a definition file may hold: ExperimentConfig's fields; `name` comes from the file name.

@@ -27,7 +27,7 @@ from ..agents.config import TrainConfig
 from ..agents.run_folder import read_progress
 from ..agents.training import in_main_thread
 from ..exceptions import InvalidConfig
-from .config import EXPERIMENT_FILE, ExperimentConfig, config_labels
+from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
 #: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
@@ -53,7 +53,7 @@ def run_experiment(
     tmp.write_text(json.dumps(exp.to_dict(), indent=2) + "\n")
     os.replace(tmp, exp_dir / EXPERIMENT_FILE)
 
-    runs = exp.runs()
+    runs = exp.runs(exp_dir.resolve())
     display = Progress(runs, exp_dir, stream if stream is not None else sys.stderr)
     outcomes: dict[str, RunOutcome] = {}
     todo = []
@@ -69,6 +69,8 @@ def run_experiment(
                 display.finished(outcome)
             else:
                 todo.append(cfg)
+        if exp.demos is not None:
+            record_missing_demos(exp.demos, todo, display)
         if todo and ray_address is None:
             _run_local(todo, exp_dir, workers or len(os.sched_getaffinity(0)), display, outcomes)
         elif todo:
@@ -79,6 +81,25 @@ def run_experiment(
 
 
 # -- local process pool ----------------------------------------------------------------------------
+def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: Progress) -> None:
+    """Records the demonstration file of each configuration in `todo` that has none yet (written whole,
+    then renamed: an interrupted recording leaves no file)."""
+    from ..agents.demos import record_demos, save_demos, summary_line
+
+    for cfg in todo:
+        path = Path(cfg.agent.demos.path or "")
+        if path.is_file():
+            continue
+        display.message(f"recording {recipe.episodes} demonstrations for {cfg.env_name}")
+        demos = record_demos(cfg.env_id, recipe.episodes, obs=cfg.obs, action=cfg.action, seed=recipe.seed)
+        if demos.n_episodes < recipe.episodes:
+            raise InvalidConfig(
+                f"[demos]: the scripted demonstrator of {cfg.env_name} succeeded on only {demos.n_episodes} "
+                f"of {demos.meta['attempted']} episodes; {recipe.episodes} needed"
+            )
+        display.message(summary_line(demos, save_demos(demos, path)))
+
+
 def _worker(conn: Connection) -> None:
     """A spawned worker process: runs the (config, experiment dir) it receives until it gets None."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # training handles SIGINT itself while it runs
