@@ -12,10 +12,11 @@ from tsrl.kinematics import forward_kinematics
 from tsrl.taskmaps import TASK_MAPS, TaskMap, parse_spec
 
 #: Example arguments per argument kind: a site and a body on different links, two geoms that can
-#: touch, and an inner map for `velocity`.
+#: touch, the suction cup's adhesion actuator, and an inner map for `velocity`.
 EXAMPLE_ARGS = {
     "frame": ("tcp", "upper_arm_link"),
     "geom": ("suction_cup", "table"),
+    "actuator": ("suction",),
 }
 
 #: Maps whose value is only smooth near a chosen pose (the suction cup pressed into the table).

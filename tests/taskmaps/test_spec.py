@@ -35,10 +35,11 @@ PRESET_FEATURES["pick_phi"] = [
     "positionDiff(box, target)",
     "positionDiff(tcp, target)",
 ]
-PRESET_FEATURES["pick_phi_box"] = [
+PRESET_FEATURES["pick_phi_plus"] = [
     *PRESET_FEATURES["pick_phi"],
     "positionDiff(box, tcp)",
     "velocity(position(box))",
+    "suction(suction)",
 ]
 
 
@@ -141,8 +142,9 @@ def test_canonical_spec_round_trips_and_ignores_whitespace(reach_model):
     assert parse_spec(stack.spec, reach_model).spec == stack.spec
 
 
-def test_known_maps_has_every_rai_symbol():
+def test_known_maps_has_every_rai_symbol_and_suction():
     expected = {
+        "suction",  # not a RAI symbol: the suction cup's state (tsrl's own)
         "position",
         "positionDiff",
         "positionRel",

@@ -36,8 +36,9 @@ OBS_PRESETS: dict[str, str] = {
         "position(box), position(target), position(tcp), quaternion(tcp), positionDiff(box, target), "
         "positionDiff(tcp, target)"
     ),
-    # pick_phi plus the box relative to the TCP and the box's velocity (25 values).
-    "pick_phi_box": "pick_phi, positionDiff(box, tcp), velocity(position(box))",
+    # pick_phi plus the box relative to the TCP, the box's velocity and the suction cup's state (on,
+    # holding) (27 values).
+    "pick_phi_plus": "pick_phi, positionDiff(box, tcp), velocity(position(box)), suction(suction)",
 }
 
 

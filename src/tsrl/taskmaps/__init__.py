@@ -8,6 +8,7 @@ from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
 from .spec import TASK_MAPS, known_maps, parse_spec
 from .stack import Stack
+from .suction import Suction
 from .velocity import Velocity
 
 __all__ = (
@@ -25,6 +26,7 @@ __all__ = (
     "QuaternionDiff",
     "ScalarProduct",
     "Stack",
+    "Suction",
     "TaskMap",
     "TaskMapValue",
     "Vector",

@@ -28,6 +28,7 @@ from .joint import JointLimits, JointState
 from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
 from .stack import Stack
+from .suction import Suction
 from .velocity import Velocity
 
 #: The world frame's name in specs: its pose is known (identity) without being carried by the goal.
@@ -218,6 +219,7 @@ _RULES: dict[type, Callable[..., np.ndarray]] = {
     Stack: _stack,
     Distance: _never,
     AccumulatedCollisions: _never,
+    Suction: _never,
     JointState: _unchanged,
     JointLimits: _unchanged,
 }

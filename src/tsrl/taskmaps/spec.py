@@ -20,12 +20,13 @@ from .joint import JointLimits, JointState
 from .orientation import AXES, Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
 from .stack import Stack
+from .suction import Suction
 from .velocity import Velocity
 
 
 @dataclass(frozen=True)
 class MapEntry:
-    """How the parser builds one map: argument kinds ("frame", "geom" or "map") and a builder."""
+    """How the parser builds one map: argument kinds ("frame", "geom", "actuator" or "map") and a builder."""
 
     args: tuple[str, ...]
     build: Callable[..., TaskMap]  # build(model, *args); a "map" argument arrives built
@@ -56,6 +57,7 @@ TASK_MAPS: dict[str, MapEntry] = {
     },
     "distance": MapEntry(("geom", "geom"), Distance),
     "accumulatedCollisions": MapEntry((), AccumulatedCollisions),
+    "suction": MapEntry(("actuator",), Suction),
     "jointState": MapEntry((), JointState, joints=True),
     "jointLimits": MapEntry((), JointLimits, joints=True),
     "velocity": MapEntry(("map",), _velocity),
@@ -75,7 +77,8 @@ def parse_spec(
     A spec is a comma-separated list of maps `name(arg, ...)` (no parentheses for maps without
     arguments) and names of `presets` (name -> spec, e.g. tsrl.envs.OBS_PRESETS), which expand in
     place. Arguments are frame names
-    (sites, else bodies; `world` is the world body), geom names (`distance`) or a map (`velocity`).
+    (sites, else bodies; `world` is the world body), geom names (`distance`), an adhesion actuator
+    (`suction`) or a map (`velocity`).
     Always returns a Stack, even for one map, so `slices` names every part.
 
     `joints` are the controlled joints that `jointState` and `jointLimits` read: hinge or slide joint
