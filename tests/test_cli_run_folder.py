@@ -12,21 +12,8 @@ from pathlib import Path
 
 import pytest
 from cli_runner import RUN_NAME, TINY, run_tsrl
+from training_helpers import DAMAGE
 
-
-def cut(path: Path) -> None:
-    data = path.read_bytes()
-    path.write_bytes(data[: len(data) // 2])
-
-
-#: One way to damage each file of a checkpoint.
-DAMAGE = {
-    "model.zip": lambda p: p.write_bytes(b"not a zip archive"),
-    "replay_buffer.pkl": cut,
-    "vecnormalize.pkl": cut,
-    "rng.pkl": cut,
-    "state.json": lambda p: p.write_text('{"env_steps": 200, "episodes": '),
-}
 STEPS = ("step_0000000100", "step_0000000200")
 
 

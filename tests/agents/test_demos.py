@@ -18,9 +18,10 @@ import pytest
 import torch as th
 from cli_runner import run_tsrl
 from stable_baselines3.common.vec_env import DummyVecEnv
+from training_helpers import fill_with_random_episodes, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env, resume, train
+from tsrl.agents import TrainConfig, make_agent, make_vec_env, resume, train
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demos import (
     DEMOS_RECORD,
@@ -50,21 +51,6 @@ def reach_demos(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def pick_demos() -> Demonstrations:
     return record_demos(PICK, 3, obs="fs1", seed=0)
-
-
-def tiny(total: int = 200, seed: int = 0, demos: DemoConfig | None = None, **agent: object) -> TrainConfig:
-    """Seconds of training on reach: 100 random steps, then 10 gradient steps every two episodes."""
-    return TrainConfig(
-        obs="fs1",
-        seed=seed,
-        total_timesteps=total,
-        eval_freq=100,
-        eval_episodes=2,
-        checkpoint_freq=100,
-        agent=AgentConfig(
-            learning_starts=100, gradient_steps=10, batch_size=64, demos=demos or DemoConfig(), **agent
-        ),
-    )
 
 
 # -- recording and files ---------------------------------------------------------------------------
@@ -242,7 +228,7 @@ def test_demo_rows_are_relabelled_like_env_relabel(pick_demos):
         1000, venv.observation_space, venv.action_space, venv, device="cpu", demo_share=0.5
     )
     buffer.set_demos(pick_demos)
-    _fill_with_random_episodes(buffer, venv, 2)
+    fill_with_random_episodes(buffer, venv, 2)
     env = venv.envs[0].unwrapped
     np.random.seed(2)
     batch = buffer.sample(256)
@@ -290,19 +276,6 @@ def _stored_row(observations, actions, obs, action, env) -> int:
     rows = np.flatnonzero(same)
     assert len(rows) >= 1
     return int(rows[0])
-
-
-def _fill_with_random_episodes(buffer, venv, episodes: int) -> None:
-    venv.seed(0)
-    venv.action_space.seed(0)
-    obs = venv.reset()
-    for _ in range(episodes * 50):
-        action = np.array([venv.action_space.sample()])
-        next_obs, reward, done, infos = venv.step(action)
-        real_next = infos[0]["terminal_observation"] if done[0] else next_obs
-        real_next = {k: np.asarray(v).reshape(1, -1) for k, v in real_next.items()}
-        buffer.add(obs, real_next, action, reward, done, infos)
-        obs = next_obs
 
 
 # -- the Q-filtered BC loss ------------------------------------------------------------------------

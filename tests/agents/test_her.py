@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv
+from training_helpers import fill_with_random_episodes
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import FeatureHerReplayBuffer
@@ -20,16 +21,7 @@ def filled_buffer(relabel_features: bool) -> tuple[FeatureHerReplayBuffer, Dummy
     buffer = FeatureHerReplayBuffer(
         1000, venv.observation_space, venv.action_space, venv, device="cpu", relabel_features=relabel_features
     )
-    venv.seed(0)
-    venv.action_space.seed(0)
-    obs = venv.reset()
-    for _ in range(EPISODES * 50):
-        action = np.array([venv.action_space.sample()])
-        next_obs, reward, done, infos = venv.step(action)
-        real_next = infos[0]["terminal_observation"] if done[0] else next_obs
-        real_next = {k: np.asarray(v).reshape(1, -1) for k, v in real_next.items()}
-        buffer.add(obs, real_next, action, reward, done, infos)
-        obs = next_obs
+    fill_with_random_episodes(buffer, venv, EPISODES)
     return buffer, venv
 
 

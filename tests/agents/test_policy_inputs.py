@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 import torch as th
 from stable_baselines3.common.torch_layers import CombinedExtractor
+from training_helpers import tiny
 
 from tsrl.agents import AgentConfig, TrainConfig, factory
 from tsrl.agents.factory import make_agent, make_vec_env
@@ -13,14 +14,6 @@ from tsrl.exceptions import InvalidConfig
 
 FS1_DIM = 15  # paper Table I
 GOAL_DIM = ACTION_DIM = 3
-
-
-def tiny(**agent: object) -> TrainConfig:
-    return TrainConfig(
-        obs="fs1",
-        total_timesteps=200,
-        agent=AgentConfig(learning_starts=100, gradient_steps=10, batch_size=64, **agent),
-    )
 
 
 def test_networks_see_the_selected_keys_of_a_relabelled_sample():

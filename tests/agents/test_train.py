@@ -9,23 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from training_helpers import DAMAGE, tiny
 
-from tsrl.agents import AgentConfig, HerConfig, TrainConfig, load_config, read_progress, resume, train
+from tsrl.agents import HerConfig, load_config, read_progress, resume, train
 from tsrl.agents.checkpoint import usable_checkpoint, verify_checkpoint
 from tsrl.agents.run_folder import DamagedCheckpoint, checkpoint_dirs, latest_checkpoint, read_state
-
-
-def tiny(algo: str = "ddpg", seed: int = 0, total: int = 200, **agent: object) -> TrainConfig:
-    """A few seconds of training: 100 random steps, then updates after every two episodes."""
-    return TrainConfig(
-        obs="fs1",
-        seed=seed,
-        total_timesteps=total,
-        eval_freq=100,
-        eval_episodes=2,
-        checkpoint_freq=100,
-        agent=AgentConfig(algo=algo, learning_starts=100, gradient_steps=10, batch_size=64, **agent),
-    )
 
 
 def buffer_of(run_dir):
@@ -92,22 +80,6 @@ def test_plain_her_runs_for_comparison(tmp_path):
     run_dir = train(tiny(her=HerConfig(relabel="plain")), tmp_path, progress_bar=False)
     assert run_dir.name.endswith("__s0__her-plain") and load_config(run_dir).agent.her.relabel == "plain"
     assert [r["env_steps"] for r in read_progress(run_dir)] == [0, 100, 200]
-
-
-def cut(path: Path) -> None:
-    """A file cut short, as a full disk or a kill during a copy leaves it."""
-    data = path.read_bytes()
-    path.write_bytes(data[: len(data) // 2])
-
-
-#: One way to damage each file of a checkpoint.
-DAMAGE = {
-    "model.zip": lambda p: p.write_bytes(b"not a zip archive"),
-    "replay_buffer.pkl": cut,
-    "vecnormalize.pkl": cut,
-    "rng.pkl": cut,
-    "state.json": cut,
-}
 
 
 @pytest.fixture(scope="module")

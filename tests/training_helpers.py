@@ -1,0 +1,54 @@
+"""Helpers of the training tests: a seconds-long TrainConfig, damaged checkpoint files, a replay
+buffer filled with random episodes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from tsrl.agents import AgentConfig, TrainConfig
+
+
+def tiny(algo: str = "ddpg", seed: int = 0, total: int = 200, **agent: object) -> TrainConfig:
+    """Seconds of training on reach (fs1): 100 random steps, then 10 gradient steps every two
+    episodes; evaluation and checkpoint every 100 env steps. `agent` overrides AgentConfig fields."""
+    return TrainConfig(
+        obs="fs1",
+        seed=seed,
+        total_timesteps=total,
+        eval_freq=100,
+        eval_episodes=2,
+        checkpoint_freq=100,
+        agent=AgentConfig(algo=algo, learning_starts=100, gradient_steps=10, batch_size=64, **agent),
+    )
+
+
+def cut(path: Path) -> None:
+    """A file cut short, as a full disk or a kill during a copy leaves it."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+#: One way to damage each file of a checkpoint.
+DAMAGE = {
+    "model.zip": lambda p: p.write_bytes(b"not a zip archive"),
+    "replay_buffer.pkl": cut,
+    "vecnormalize.pkl": cut,
+    "rng.pkl": cut,
+    "state.json": cut,
+}
+
+
+def fill_with_random_episodes(buffer, venv, episodes: int) -> None:
+    """Adds `episodes` 50-step episodes of seeded uniformly random actions to `buffer`."""
+    venv.seed(0)
+    venv.action_space.seed(0)
+    obs = venv.reset()
+    for _ in range(episodes * 50):
+        action = np.array([venv.action_space.sample()])
+        next_obs, reward, done, infos = venv.step(action)
+        real_next = infos[0]["terminal_observation"] if done[0] else next_obs
+        real_next = {k: np.asarray(v).reshape(1, -1) for k, v in real_next.items()}
+        buffer.add(obs, real_next, action, reward, done, infos)
+        obs = next_obs
