@@ -33,7 +33,8 @@ learning_starts = 100
     [("quick-reach", 1, 5_000), ("paper-observations", 25, 8_000), ("action-ablation", 10, 20_000), ("pick-place", 6, 200_000),
      ("paper-observations-v2", 50, 6_000), ("action-ablation-v2", 40, 25_000), ("pose-features", 20, 50_000),
      ("paper-observations-v2-hard", 50, 8_000),
-     ("obstacle-features", 20, 15_000), ("pick-place-features", 30, 50_000)],
+     ("obstacle-features", 20, 15_000), ("pick-place-features", 20, 50_000),
+     ("pick-place-suction", 20, 50_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)
@@ -46,7 +47,7 @@ def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
         her = configs[0].agent.her
         assert len(exp.seeds) >= 10 and exp.eval_episodes >= 50 and exp.total_timesteps // exp.eval_freq >= 25
         assert exp.comparisons and (her.strategy, her.n_sampled_goal) == ("final", 1)
-        inputs = ("observation", "desired_goal") if name != "pick-place-features" else POLICY_INPUTS
+        inputs = ("observation", "desired_goal") if not name.startswith("pick-place") else POLICY_INPUTS
         assert configs[0].agent.policy_inputs == inputs
 
 
