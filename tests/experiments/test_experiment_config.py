@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -235,3 +236,19 @@ def test_bad_comparison_is_one_line_naming_the_accepted_values(table, expected, 
 def test_arms_name_only_what_varies():
     exp = ExperimentConfig(name="x", obs=("fs1",), action=("taskspace", "joint"), algo=("ddpg", "sac"))
     assert exp.arms() == ["taskspace / ddpg", "taskspace / sac", "joint / ddpg", "joint / sac"]
+
+
+def test_plot_colours_keep_the_papers_for_its_presets_and_give_others_unused_ones():
+    import matplotlib.colors as mcolors
+
+    from tsrl.experiments.plots import PAPER_COLOURS, colours
+
+    def curves(*presets: str) -> list:
+        return [SimpleNamespace(key=("tsrl/UR5eReach-v0", p, "taskspace", "ddpg", "")) for p in presets]
+
+    paper = {mcolors.to_hex(c) for c in PAPER_COLOURS.values()}
+    assert colours(curves("baseline", "simple", "fs0", "fs1", "fs2")) == list(PAPER_COLOURS.values())
+    baseline, phi = colours(curves("baseline", "pick_phi"))
+    assert baseline == PAPER_COLOURS["baseline"] and mcolors.to_hex(phi) not in paper
+    many = [mcolors.to_hex(c) for c in colours(curves(*(f"spec{i}" for i in range(20))))]
+    assert len(many) == 20 and not set(many) & paper  # tab20 less the paper's colours, cycled

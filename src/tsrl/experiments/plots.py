@@ -4,6 +4,7 @@ AUC performance profile. Observation presets get the paper's colours, in its Tab
 
 from __future__ import annotations
 
+import itertools
 import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,14 +33,17 @@ LEGEND_WIDTH = 60
 
 
 def colours(curves: list[Curve]) -> list[str]:
-    """The paper's colour of each curve's preset when the curves are distinct presets; else tab10/tab20."""
+    """Each curve's colour: the paper's for a Table I preset (when no two curves share the preset), the
+    next tab10/tab20 colour the paper's presets do not use for anything else."""
+    import matplotlib.colors as mcolors
     import matplotlib.pyplot as plt
 
     presets = [c.key[1] for c in curves]
-    if all(p in PAPER_COLOURS for p in presets) and len(set(presets)) == len(presets):
-        return [PAPER_COLOURS[p] for p in presets]
+    distinct = len(set(presets)) == len(presets)
+    taken = {mcolors.to_hex(c) for c in PAPER_COLOURS.values()} if distinct else set()
     cycle = plt.get_cmap("tab10" if len(curves) <= 10 else "tab20").colors
-    return [cycle[i % len(cycle)] for i in range(len(curves))]
+    free = itertools.cycle([c for c in cycle if mcolors.to_hex(c) not in taken])
+    return [PAPER_COLOURS[p] if distinct and p in PAPER_COLOURS else next(free) for p in presets]
 
 
 def describe(curves: list[Curve]) -> str:
