@@ -80,7 +80,6 @@ def run_experiment(
     return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
 
 
-# -- local process pool ----------------------------------------------------------------------------
 def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: Progress) -> None:
     """Records the demonstration file of each configuration in `todo` that has none yet (written whole,
     then renamed: an interrupted recording leaves no file)."""
@@ -100,6 +99,7 @@ def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: P
         display.message(summary_line(demos, save_demos(demos, path)))
 
 
+# -- local process pool ----------------------------------------------------------------------------
 def _worker(conn: Connection) -> None:
     """A spawned worker process: runs the (config, experiment dir) it receives until it gets None."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # training handles SIGINT itself while it runs
