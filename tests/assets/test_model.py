@@ -21,35 +21,6 @@ from tsrl.kinematics import dh_transform, name_to_id
 OBJ = mujoco.mjtObj
 
 
-@pytest.mark.parametrize("scene", ["reach", "pick_place"])
-def test_scene_has_the_named_parts(scene):
-    model = load_model(scene)
-    for joint in JOINT_NAMES:
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_JOINT, joint) >= 0
-    for site in ("flange", "tcp", "target"):
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_SITE, site) >= 0
-    for geom in ("table", "suction_cup"):
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, geom) >= 0
-    target = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "target")
-    assert model.body_mocapid[target] >= 0
-    assert model.body_geomnum[target] == 0  # the goal marker never collides
-    assert model.nkey >= 1 and mujoco.mj_name2id(model, OBJ.mjOBJ_KEY, "home") >= 0
-
-
-def test_pick_place_has_a_free_4cm_box_on_the_table():
-    model = load_model("pick_place")
-    box = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "box")
-    joint = model.body_jntadr[box]
-    assert int(model.jnt_type[joint]) == int(mujoco.mjtJoint.mjJNT_FREE)
-    geom = mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, "box")
-    np.testing.assert_allclose(model.geom_size[geom], [0.02, 0.02, 0.02])
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    for _ in range(250):  # half a second: the box rests on the table top (z = 0)
-        mujoco.mj_step(model, data)
-    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)
-
-
 def test_link_masses_and_centres_of_mass_match_the_published_values():
     model = load_model("ur5e")
     for i, body in enumerate(BODY_NAMES):

@@ -52,34 +52,6 @@ def cup_down_ik(model, data, goal, q0=HOME_Q, iterations=200):
     return q
 
 
-@pytest.mark.parametrize("scene", ["panda_reach", "panda_pick_place"])
-def test_scene_has_the_named_parts(scene):
-    model = load_model(scene)
-    for joint in JOINT_NAMES:
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_JOINT, joint) >= 0
-    for site in ("flange", "tcp", "target"):
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_SITE, site) >= 0
-    for geom in ("table", "suction_cup"):
-        assert mujoco.mj_name2id(model, OBJ.mjOBJ_GEOM, geom) >= 0
-    target = mujoco.mj_name2id(model, OBJ.mjOBJ_BODY, "target")
-    assert model.body_mocapid[target] >= 0
-    assert model.body_geomnum[target] == 0  # the goal marker never collides
-    assert mujoco.mj_name2id(model, OBJ.mjOBJ_KEY, "home") >= 0
-
-
-def test_pick_place_has_a_free_4cm_box_resting_on_the_table():
-    model = load_model("panda_pick_place")
-    box = name_to_id(model, "body", "box")
-    assert int(model.jnt_type[model.body_jntadr[box]]) == int(mujoco.mjtJoint.mjJNT_FREE)
-    np.testing.assert_allclose(model.geom_size[name_to_id(model, "geom", "box")], [0.02, 0.02, 0.02])
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, name_to_id(model, "key", "home"))
-    for _ in range(250):  # half a second
-        mujoco.mj_step(model, data)
-    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)
-    np.testing.assert_allclose(data.qpos[:NQ], HOME_Q, atol=1e-6)  # the arm holds home meanwhile
-
-
 def test_link_masses_centres_of_mass_and_inertias_are_gaz_et_al():
     model = load_model("panda")
     for i, body in enumerate(BODY_NAMES):

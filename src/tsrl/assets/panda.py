@@ -64,17 +64,8 @@ LINK_INERTIAS: tuple[tuple[float, float, float, float, float, float], ...] = (
 
 JOINT_NAMES: tuple[str, ...] = tuple(f"joint{i}" for i in range(1, 8))
 BODY_NAMES: tuple[str, ...] = tuple(f"link{i}" for i in range(1, 8))
-BASE_BODY = "link0"
-FLANGE_SITE = "flange"
 TCP_SITE = "tcp"
-TARGET_SITE = "target"
-TARGET_BODY = "target"
-SUCTION_BODY = "suction_cup"
-SUCTION_GEOM = "suction_cup"
 SUCTION_ACTUATOR = "suction"
-TABLE_GEOM = "table"
-BOX_BODY = "box"
-BOX_GEOM = "box"
 HOME_KEY = "home"
 
 #: Home configuration [rad]: the arm in the vertical plane through the base (q1 = q3 = q5 = 0), the cup

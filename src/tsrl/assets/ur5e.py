@@ -46,15 +46,8 @@ BODY_NAMES: tuple[str, ...] = (
     "wrist_2_link",
     "wrist_3_link",
 )
-FLANGE_SITE = "flange"
 TCP_SITE = "tcp"
-TARGET_SITE = "target"
-TARGET_BODY = "target"
-SUCTION_GEOM = "suction_cup"
 SUCTION_ACTUATOR = "suction"
-TABLE_GEOM = "table"
-BOX_BODY = "box"
-BOX_GEOM = "box"
 HOME_KEY = "home"
 
 #: Home configuration [rad].
