@@ -3,7 +3,7 @@ for MuJoCo's frames."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -30,13 +30,7 @@ def dh_forward(dh_table: Sequence[tuple[float, float, float]], q: ArrayLike) -> 
         dh_table: rows (a, d, alpha) in metres and radians, one per joint.
         q: joint angles (n,) in radians, added to each row's theta = 0.
     """
-    q = np.asarray(q, dtype=np.float64)
-    if q.shape != (len(dh_table),):
-        raise ValueError(f"q has shape {q.shape}; expected ({len(dh_table)},) for this DH table")
-    T = np.eye(4)
-    for (a, d, alpha), theta in zip(dh_table, q):
-        T = T @ dh_transform(a, d, alpha, theta)
-    return T
+    return _chain(dh_transform, dh_table, q)
 
 
 def modified_dh_transform(a: float, d: float, alpha: float, theta: float) -> np.ndarray:
@@ -64,10 +58,19 @@ def modified_dh_forward(mdh_table: Sequence[tuple[float, float, float]], q: Arra
         mdh_table: rows (a_{i-1}, d_i, alpha_{i-1}) in metres and radians, one per joint.
         q: joint angles (n,) in radians, added to each row's theta = 0.
     """
+    return _chain(modified_dh_transform, mdh_table, q)
+
+
+def _chain(
+    link: Callable[[float, float, float, float], np.ndarray],
+    table: Sequence[tuple[float, float, float]],
+    q: ArrayLike,
+) -> np.ndarray:
+    """The product of `link(a, d, alpha, theta)` over the rows of `table` with theta = q, shape (4, 4)."""
     q = np.asarray(q, dtype=np.float64)
-    if q.shape != (len(mdh_table),):
-        raise ValueError(f"q has shape {q.shape}; expected ({len(mdh_table)},) for this DH table")
+    if q.shape != (len(table),):
+        raise ValueError(f"q has shape {q.shape}; expected ({len(table)},) for this DH table")
     T = np.eye(4)
-    for (a, d, alpha), theta in zip(mdh_table, q):
-        T = T @ modified_dh_transform(a, d, alpha, theta)
+    for (a, d, alpha), theta in zip(table, q):
+        T = T @ link(a, d, alpha, theta)
     return T
