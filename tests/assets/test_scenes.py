@@ -1,0 +1,54 @@
+"""Every built-in scene, on either robot: the named parts tasks rely on, and the pick-and-place box."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from tsrl.assets import load_model
+from tsrl.kinematics import name_to_id
+from tsrl.robots import ROBOTS
+
+#: Built-in scene -> the robot it carries.
+SCENE_ROBOTS = {
+    "reach": "ur5e",
+    "pick_place": "ur5e",
+    "obstacle_reach": "ur5e",
+    "panda_reach": "panda",
+    "panda_pick_place": "panda",
+    "panda_obstacle_reach": "panda",
+}
+
+
+@pytest.mark.parametrize("scene", sorted(SCENE_ROBOTS))
+def test_scene_has_the_named_parts(scene):
+    model = load_model(scene)
+    robot = ROBOTS[SCENE_ROBOTS[scene]]
+    for joint in robot.joints:
+        name_to_id(model, "joint", joint)  # raises, listing the model's joints, when missing
+    for actuator in (*robot.actuators, robot.suction):
+        name_to_id(model, "actuator", actuator)
+    for site in ("flange", robot.tcp, "target"):
+        name_to_id(model, "site", site)
+    for geom in ("table", "suction_cup"):
+        name_to_id(model, "geom", geom)
+    target = name_to_id(model, "body", "target")
+    assert model.body_mocapid[target] >= 0
+    assert model.body_geomnum[target] == 0  # the goal marker never collides
+    name_to_id(model, "key", robot.home)
+
+
+@pytest.mark.parametrize("scene", ["pick_place", "panda_pick_place"])
+def test_pick_place_has_a_free_4cm_box_resting_on_the_table(scene):
+    model = load_model(scene)
+    robot = ROBOTS[SCENE_ROBOTS[scene]]
+    box = name_to_id(model, "body", "box")
+    assert int(model.jnt_type[model.body_jntadr[box]]) == int(mujoco.mjtJoint.mjJNT_FREE)
+    np.testing.assert_allclose(model.geom_size[name_to_id(model, "geom", "box")], [0.02, 0.02, 0.02])
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, name_to_id(model, "key", robot.home))
+    home = data.qpos[: len(robot.joints)].copy()
+    for _ in range(250):  # half a second: the box settles on the table top (z = 0)
+        mujoco.mj_step(model, data)
+    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)
+    # the arm holds home meanwhile
+    np.testing.assert_allclose(data.qpos[: len(robot.joints)], home, atol=1e-6)
