@@ -9,8 +9,9 @@ import pytest
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents.demos import record_demos
+from tsrl.assets import load_model
 from tsrl.exceptions import InvalidConfig, UnknownName
-from tsrl.taskmaps import Suction, parse_spec
+from tsrl.taskmaps import FrameCache, Suction, parse_spec
 
 PICK = "tsrl/UR5ePickPlace-v0"
 
@@ -57,3 +58,34 @@ def test_bad_actuators_are_one_clear_error(ur5e):
         Suction(model, "cup")
     with pytest.raises(InvalidConfig, match="'elbow' is not an adhesion actuator"):
         Suction(model, "elbow")
+
+
+def test_maps_reading_contacts_share_one_collision_pass_per_evaluation():
+    """A stack of suction and accumulatedCollisions gives each map's own value; the cache runs
+    mj_collision once per update (a second `collide` before the next update keeps the contacts)."""
+    model = load_model("pick_place")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    mujoco.mj_forward(model, data)
+    box = model.jnt_qposadr[model.body("box").jntadr[0]]
+    cup_tip = data.site_xpos[model.site("tcp").id]
+    data.qpos[box : box + 3] = cup_tip - [0.0, 0.0, 0.019]  # the box pressed 1 mm into the cup
+    data.ctrl[model.actuator("suction").id] = 1.0
+    mujoco.mj_forward(model, data)
+    stacked = parse_spec("suction(suction), accumulatedCollisions", model)(model, data)
+    alone = [parse_spec(spec, model)(model, data) for spec in ("suction(suction)", "accumulatedCollisions")]
+    np.testing.assert_array_equal(stacked.y, np.concatenate([v.y for v in alone]))
+    np.testing.assert_array_equal(stacked.J, np.concatenate([v.J for v in alone]))
+    assert stacked.y[1] == 1.0 and stacked.y[2] > 0.0  # holding, and penetrating
+
+    cache = FrameCache(model, [])
+    cache.update(data)
+    cache.collide()
+    touching = data.ncon
+    data.qpos[box + 2] += 0.2  # lift the box off the cup; kinematics only, data.contact untouched
+    mujoco.mj_kinematics(model, data)
+    cache.collide()  # the same update: no new collision pass, the contacts stay
+    assert data.ncon == touching
+    cache.update(data)
+    cache.collide()
+    assert data.ncon < touching

@@ -137,9 +137,9 @@ def _support(
 class AccumulatedCollisions(TaskMap):
     """accumulatedCollisions: sum of penetration depths over all contacts, sum_c max(0, -d_c) (1,).
 
-    Runs `mujoco.mj_collision` on `data` itself (collision detection only, no stepping), so it is
-    valid right after forward kinematics; this overwrites `data.contact` with the contacts of the
-    current configuration. For each penetrating contact with normal n (from geom1 to geom2),
+    Runs `mujoco.mj_collision` on `data` itself (collision detection only, no stepping, once per
+    evaluation for all maps that read contacts: `FrameCache.collide`), so it is valid right after
+    forward kinematics; this overwrites `data.contact` with the contacts of the current configuration. For each penetrating contact with normal n (from geom1 to geom2),
     J += n^T (Jp_1(s_1) - Jp_2(s_2)) (1, nv), where Jp_i(s) is the translational Jacobian of the
     point s fixed to geom i's body and s_1, s_2 are the geoms' support points along n and -n
     (`support_point`, as in `Distance`; the contact's own points where a support is an edge or face).
@@ -164,8 +164,8 @@ class AccumulatedCollisions(TaskMap):
         return self._names
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
+        cache.collide()
         model, data = cache.model, cache.data
-        mujoco.mj_collision(model, data)
         y[0] = 0.0
         J[:] = 0.0
         if data.ncon == 0:

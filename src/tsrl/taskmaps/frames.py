@@ -94,6 +94,7 @@ class FrameCache:
         self.data: mujoco.MjData | None = None
         self.qvel = np.zeros(model.nv)
         self._stamp = 0
+        self._collision_stamp = -1
         self._frames = list({f.key: f for f in frames}.values())
         self._states = {f.key: FrameState(model.nv, body_moves(model, f.body)) for f in self._frames}
         moving = [f for f in self._frames if self._states[f.key].moves]  # the others keep zero Jacobians
@@ -133,6 +134,13 @@ class FrameCache:
             mujoco.mj_jacSite(model, data, state.jacp, state.jacr, sid)
         for state, bid in self._body_jacobians:
             mujoco.mj_jacBody(model, data, state.jacp, state.jacr, bid)
+
+    def collide(self) -> None:
+        """Fills `data.contact` with the contacts of the cached configuration (`mujoco.mj_collision`),
+        once per update however many maps read contacts."""
+        if self._collision_stamp != self._stamp:
+            mujoco.mj_collision(self.model, self.data)
+            self._collision_stamp = self._stamp
 
     def __getitem__(self, frame: Frame) -> FrameState:
         return self._states[frame.key]

@@ -18,9 +18,10 @@ class Suction(TaskMap):
 
     on = 1 where the actuator's control is above 0, else 0; holding = 1 where it is on and a geom of
     the actuator's body touches a geom of another body (a contact of `mujoco.mj_collision`, i.e.
-    within the geoms' margin, where adhesion acts), else 0. Runs `mj_collision` on `data` itself, as
-    `AccumulatedCollisions` does. Both values are piecewise constant in q (the control is not a
-    function of q at all): J = 0 (2, nv). `frames` names the cup's body and geoms.
+    within the geoms' margin, where adhesion acts), else 0. Reads the contacts of `FrameCache.collide`
+    (`mj_collision` on `data` itself, once per evaluation for all maps that read contacts). Both
+    values are piecewise constant in q (the control is not a function of q at all): J = 0 (2, nv).
+    `frames` names the cup's body and geoms.
     """
 
     dim = 2
@@ -46,13 +47,13 @@ class Suction(TaskMap):
         return self._names
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
-        model, data = cache.model, cache.data
+        data = cache.data
         J[:] = 0.0
         y[0] = 1.0 if data.ctrl[self.actuator] > 0.0 else 0.0
         y[1] = 0.0
         if not y[0]:
             return
-        mujoco.mj_collision(model, data)
+        cache.collide()
         for g1, g2 in data.contact.geom[: data.ncon].tolist():
             if (g1 in self._geoms) != (g2 in self._geoms):  # the cup against another body's geom
                 y[1] = 1.0
