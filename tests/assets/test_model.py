@@ -8,11 +8,8 @@ from tsrl.assets import SCENES, load_model, scene_path
 from tsrl.assets.ur5e import (
     BODY_NAMES,
     HOME_Q,
-    JOINT_LIMITS,
-    JOINT_NAMES,
     LINK_COMS_DH,
     LINK_MASSES,
-    MAX_JOINT_TORQUES,
     UR5E_DH,
 )
 from tsrl.exceptions import ModelLoadError, UnknownName, UnknownScene
@@ -30,23 +27,6 @@ def test_link_masses_and_centres_of_mass_match_the_published_values():
         T = dh_transform(*UR5E_DH[i], theta=0.0)
         com_body = T[:3, :3] @ np.array(LINK_COMS_DH[i]) + T[:3, 3]
         np.testing.assert_allclose(model.body_ipos[b], com_body, atol=1e-5)
-
-
-def test_joint_limits_torques_and_servos():
-    model = load_model("reach")
-    for i, name in enumerate(JOINT_NAMES):
-        j = name_to_id(model, "joint", name)
-        np.testing.assert_allclose(model.jnt_range[j], JOINT_LIMITS[i])
-        a = name_to_id(model, "actuator", name)
-        assert int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
-        assert model.actuator_trnid[a, 0] == j
-        np.testing.assert_allclose(
-            model.actuator_forcerange[a], [-MAX_JOINT_TORQUES[i], MAX_JOINT_TORQUES[i]]
-        )
-        assert model.jnt_actgravcomp[j]
-    suction = name_to_id(model, "actuator", "suction")
-    assert int(model.actuator_trntype[suction]) == int(mujoco.mjtTrn.mjTRN_BODY)
-    assert model.actuator_trnid[suction, 0] == name_to_id(model, "body", "suction_cup")
 
 
 def test_unknown_scene_lists_the_known_scenes():

@@ -67,24 +67,6 @@ def test_link_masses_centres_of_mass_and_inertias_are_gaz_et_al():
         np.testing.assert_allclose(R @ np.diag(model.body_inertia[b]) @ R.T, published, atol=1e-9)
 
 
-def test_joint_limits_torques_and_servos():
-    model = load_model("panda_reach")
-    for i, name in enumerate(JOINT_NAMES):
-        j = name_to_id(model, "joint", name)
-        np.testing.assert_allclose(model.jnt_range[j], JOINT_LIMITS[i])
-        a = name_to_id(model, "actuator", name)
-        assert int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
-        assert model.actuator_trnid[a, 0] == j
-        np.testing.assert_allclose(model.actuator_ctrlrange[a], JOINT_LIMITS[i])
-        np.testing.assert_allclose(
-            model.actuator_forcerange[a], [-MAX_JOINT_TORQUES[i], MAX_JOINT_TORQUES[i]]
-        )
-        assert model.jnt_actgravcomp[j]
-    suction = name_to_id(model, "actuator", "suction")
-    assert int(model.actuator_trntype[suction]) == int(mujoco.mjtTrn.mjTRN_BODY)
-    assert model.actuator_trnid[suction, 0] == name_to_id(model, "body", "suction_cup")
-
-
 def test_gravity_compensation_fits_in_the_torque_limits_everywhere(rng):
     model = load_model("panda")
     data = mujoco.MjData(model)
