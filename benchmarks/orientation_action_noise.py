@@ -26,15 +26,18 @@ from __future__ import annotations
 
 import argparse
 
+import gymnasium as gym
 import mujoco
 import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents.demos import ScriptedPickPlace
+from tsrl.envs.actions import ACTION_PRESETS
 from tsrl.taskmaps import parse_spec
 
 ENV_ID = "tsrl/UR5ePickPlace-v0"
-SCALAR_PRODUCTS = "scalarProductXX(world, tcp), scalarProductYY(world, tcp), scalarProductZZ(world, tcp)"
+#: The paper's orientation action: the parts of `taskspace_orient` after the TCP position.
+SCALAR_PRODUCTS = ", ".join(part.map for part in ACTION_PRESETS["taskspace_orient"].parts[1:])
 
 
 def run(action: str, sigma: float, episodes: int, noisy_orientation: bool = True) -> tuple[float, np.ndarray]:
@@ -69,14 +72,12 @@ def run(action: str, sigma: float, episodes: int, noisy_orientation: bool = True
 
 def jacobian_singular_values() -> np.ndarray:
     """Singular values of d(x.x, y.y, z.z)/dq at the UR5e's home (cup down)."""
-    controller = ScriptedPickPlace(ENV_ID, "taskspace_orient")
-    env = controller.env.unwrapped
-    controller.reset(seed=0)
+    env = gym.make(ENV_ID).unwrapped
     data = mujoco.MjData(env.model)
     env._reset_to_home(data)
     mujoco.mj_fwdPosition(env.model, data)  # frames and the joint axes' motion (cdof) for Jacobians
     value = parse_spec(SCALAR_PRODUCTS, env.model, env.robot.joints)(env.model, data)
-    controller.close()
+    env.close()
     print(f"(x.x, y.y, z.z) at home: {np.round(value.y, 6)}")
     return np.linalg.svd(value.J, compute_uv=False)
 

@@ -139,11 +139,13 @@ class AccumulatedCollisions(TaskMap):
 
     Runs `mujoco.mj_collision` on `data` itself (collision detection only, no stepping, once per
     evaluation for all maps that read contacts: `FrameCache.collide`), so it is valid right after
-    forward kinematics; this overwrites `data.contact` with the contacts of the current configuration. For each penetrating contact with normal n (from geom1 to geom2),
-    J += n^T (Jp_1(s_1) - Jp_2(s_2)) (1, nv), where Jp_i(s) is the translational Jacobian of the
-    point s fixed to geom i's body and s_1, s_2 are the geoms' support points along n and -n
-    (`support_point`, as in `Distance`; the contact's own points where a support is an edge or face).
-    Where a pair of geoms touches at several contacts (a patch) each contact's own point is used. `frames` holds the names of the bodies and geoms that can collide.
+    forward kinematics; this overwrites `data.contact` with the contacts of the current configuration.
+    For each penetrating contact with normal n (from geom1 to geom2), J += n^T (Jp_1(s_1) - Jp_2(s_2))
+    (1, nv), where Jp_i(s) is the translational Jacobian of the point s fixed to geom i's body and
+    s_1, s_2 are the geoms' support points along n and -n (`support_point`, as in `Distance`; the
+    contact's own points where a support is an edge or face). Where a pair of geoms touches at several
+    contacts (a patch) each contact's own point is used. `frames` holds the names of the bodies and
+    geoms that can collide.
     """
 
     dim = 1
