@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -10,6 +11,7 @@ from gymnasium.utils.env_checker import check_env
 import tsrl
 from tsrl.envs import TASK_ENV_ID, load_task
 from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver
+from tsrl.envs.tasks import builtin_task_path
 from tsrl.exceptions import InvalidConfig, ModelLoadError, NotRelabelable
 
 REACH_TOML = """
@@ -149,6 +151,8 @@ def test_collision_penalty_stays_exact_under_relabelling():
         ("tsrl/PandaPoseReach-v0", PoseReachSolver),
         ("tsrl/UR5eObstacleReach-v0", ObstacleReachSolver),
         ("tsrl/PandaObstacleReach-v0", ObstacleReachSolver),
+        ("tsrl/UR5eObstacleReach-v1", ObstacleReachSolver),
+        ("tsrl/PandaObstacleReach-v1", ObstacleReachSolver),
     ],
 )
 def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes=100, at_least=99):
@@ -163,6 +167,42 @@ def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes=100, 
             obs, _, _, truncated, info = env.step(s.act(obs))
         successes += info["is_success"]
     assert successes >= at_least, f"{successes}/{episodes}"
+
+
+def _touching_episodes(env_id: str, seeds: range) -> tuple[int, int]:
+    """Episodes whose start state has the obstacle in a contact, and episodes whose last step under the
+    obstacle solver is penalised (the robot resting on the obstacle at the goal)."""
+    env = gym.make(env_id)
+    u = env.unwrapped
+    obstacle = u.model.geom(u.task.obstacle.geom).id
+    solver = ObstacleReachSolver(u)
+    at_start = at_goal = 0
+    for seed in seeds:
+        obs, _ = env.reset(seed=seed)
+        mujoco.mj_collision(u.model, u.data)
+        at_start += any(obstacle in c.geom for c in u.data.contact[: u.data.ncon])
+        solver.reset(obs)
+        truncated = False
+        while not truncated:
+            obs, _, _, truncated, info = env.step(solver.act(obs))
+        at_goal += info["penalty"] != 0
+    return at_start, at_goal
+
+
+@pytest.mark.parametrize("robot", ["UR5e", "Panda"])
+def test_v1_obstacles_leave_the_robot_free_at_the_start_and_at_the_goal(robot):
+    seeds = range(60)
+    start_v0, goal_v0 = _touching_episodes(f"tsrl/{robot}ObstacleReach-v0", seeds)
+    start_v1, goal_v1 = _touching_episodes(f"tsrl/{robot}ObstacleReach-v1", seeds)
+    assert start_v1 == 0 and goal_v1 <= 1, (start_v1, goal_v1)
+    assert start_v0 + goal_v0 >= 5  # v0 keeps obstacles that do not hold: the check can fail
+
+
+def test_clear_at_goal_needs_a_tcp_position_goal(tmp_path):
+    text = builtin_task_path("UR5eObstacleReach-v1").read_text()
+    text = text.replace('map = "position(tcp)"', 'map = "position(flange)"')
+    with pytest.raises(InvalidConfig, match=r"clear_at_goal needs the goal map position\(tcp\)"):
+        gym.make(TASK_ENV_ID, task=_task_file(tmp_path, text))
 
 
 def _task_file(tmp_path, text: str) -> str:

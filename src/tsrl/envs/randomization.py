@@ -8,8 +8,10 @@ import mujoco
 import numpy as np
 
 from ..exceptions import InvalidConfig
+from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_qpos_indices, as_slice, name_to_id
 from ..robots import Robot
+from ..taskmaps import parse_spec
 from .scenes import TARGET_BODY
 from .tasks import PositionSampler, Task
 
@@ -19,7 +21,7 @@ class Randomizer:
 
     Draw order (part of the seeded behaviour): start noise, objects, goal position (drawn again while
     too close to the first object or, with an obstacle, to the TCP's start), goal orientation,
-    obstacle.
+    obstacle (with `clear_at_goal`: goal, orientation and obstacle again while no obstacle fits).
     """
 
     def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
@@ -44,6 +46,7 @@ class Randomizer:
                 raise InvalidConfig(f"object {obj.body!r} needs a free joint to be placed at reset")
             self._objects.append((int(model.jnt_qposadr[joint]), obj))
         self._obstacle = None
+        self._at_goal: _RobotAtGoal | None = None
         if task.obstacle is not None:
             o = task.obstacle
             mocap = int(model.body_mocapid[name_to_id(model, "body", o.body)])
@@ -51,6 +54,8 @@ class Randomizer:
                 raise InvalidConfig(f"obstacle body {o.body!r} must be a mocap body")
             geom = name_to_id(model, "geom", o.geom)
             self._obstacle = (mocap, geom, name_to_id(model, "site", robot.tcp))
+            if o.clear_at_goal:
+                self._at_goal = _RobotAtGoal(model, task, robot)
 
     def randomize(self, data: mujoco.MjData, rng: np.random.Generator) -> None:
         """Samples and sets the start state and goal in `data` (after a reset to the home keyframe)."""
@@ -68,11 +73,19 @@ class Randomizer:
         if self._obstacle is not None:
             mujoco.mj_kinematics(self.model, data)
             tcp_start = data.site_xpos[self._obstacle[2]].copy()
-        goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
-        quat = self._sample_orientation(rng) if task.goal.orientation is not None else None
-        self.place_target(data, goal, quat)
-        if self._obstacle is not None:
-            self._place_obstacle(data, rng, tcp_start, goal)
+        for _ in range(_GOAL_AND_OBSTACLE_TRIES):
+            goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
+            quat = self._sample_orientation(rng) if task.goal.orientation is not None else None
+            self.place_target(data, goal, quat)
+            if self._obstacle is None or self._place_obstacle(data, rng, tcp_start, goal):
+                return
+            if not task.obstacle.clear_at_goal:
+                return  # v0 tasks keep the last draw of the obstacle
+        raise InvalidConfig(
+            f"obstacle: no goal and obstacle drawn in {_GOAL_AND_OBSTACLE_TRIES} tries leave the robot untouched at "
+            f"the start and at the goal with {task.obstacle.goal_clearance} m of room (goal_clearance); widen the "
+            "goal box or lower goal_clearance or the obstacle's size"
+        )
 
     def place_target(self, data: mujoco.MjData, pos: np.ndarray, quat: np.ndarray | None = None) -> None:
         """Puts the goal marker at `pos` (3,) and, for pose goals, orientation `quat` (4,)."""
@@ -117,9 +130,10 @@ class Randomizer:
 
     def _place_obstacle(
         self, data: mujoco.MjData, rng: np.random.Generator, start: np.ndarray, goal: np.ndarray
-    ):
-        """Draws the obstacle until it touches nothing at the start and leaves `goal_clearance` m around the
-        goal (at most `_OBSTACLE_TRIES` draws; the last one stays)."""
+    ) -> bool:
+        """Draws the obstacle until it touches nothing at the start, leaves `goal_clearance` m between its
+        surface and the goal, horizontally, and, with `clear_at_goal`, touches nothing with the robot at
+        the goal (at most `_OBSTACLE_TRIES` draws; the last one stays). Returns whether it meets them."""
         o = self.task.obstacle
         mocap, geom, _ = self._obstacle
         for _ in range(_OBSTACLE_TRIES):
@@ -131,13 +145,54 @@ class Randomizer:
             data.mocap_pos[mocap] = center
             mujoco.mj_kinematics(self.model, data)
             mujoco.mj_collision(self.model, data)
-            touches = any(geom in c.geom for c in data.contact[: data.ncon])
-            if not touches and np.linalg.norm((goal - center)[:2]) >= radius + o.goal_clearance:
-                return
+            if _touches(data, geom) or np.linalg.norm((goal - center)[:2]) < radius + o.goal_clearance:
+                continue
+            if not o.clear_at_goal or not self._at_goal.touches(data, goal, geom):
+                return True
+        return False
 
 
 #: Draws of the obstacle before the last one is kept (each draw checks contacts and the goal's room).
 _OBSTACLE_TRIES = 20
+#: With `clear_at_goal`: draws of the goal (each with up to _OBSTACLE_TRIES obstacles) before giving up.
+_GOAL_AND_OBSTACLE_TRIES = 100
+
+
+def _touches(data: mujoco.MjData, geom: int) -> bool:
+    """Whether `geom` is in any contact of data's last mj_collision."""
+    return any(geom in c.geom for c in data.contact[: data.ncon])
+
+
+class _RobotAtGoal:
+    """The robot at a position goal as the task's IK brings it there: a local solve (no restarts) from
+    the start configuration to the goal with the action's held maps held (the cup down), in its own
+    MjData that mirrors the obstacle's placement."""
+
+    def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
+        if task.goal.map != f"position({robot.tcp})":
+            raise InvalidConfig(
+                f"obstacle.clear_at_goal needs the goal map position({robot.tcp}) (the IK solves the robot to "
+                f"the goal); got {task.goal.map!r}"
+            )
+        spec = task.action_spec
+        maps = ", ".join([task.goal.map, *(h.map for h in spec.hold)])
+        self._held = np.concatenate([[], *(h.value for h in spec.hold)])
+        posture = tuple(robot.home_q(model)) if len(robot.joints) > 6 else None
+        options = IKOptions(restarts=0, posture=posture)
+        self._solver = DlsSolver(model, parse_spec(maps, model, robot.joints), robot.joints, options)
+        self._data = mujoco.MjData(model)
+
+    def touches(self, data: mujoco.MjData, goal: np.ndarray, geom: int) -> bool:
+        """Whether `geom` touches anything with the robot solved to `goal` (3,) from data's state."""
+        at_goal = self._data
+        at_goal.qpos[:], at_goal.mocap_pos[:], at_goal.mocap_quat[:] = (
+            data.qpos,
+            data.mocap_pos,
+            data.mocap_quat,
+        )
+        self._solver.solve(at_goal, np.concatenate([goal, self._held]))
+        mujoco.mj_collision(self._solver.model, at_goal)
+        return _touches(at_goal, geom)
 
 
 def _sample_box(rng: np.random.Generator, center, half_extent) -> np.ndarray:

@@ -138,8 +138,12 @@ class ObstacleSampler:
     Its centre is start + u (goal - start), u uniform in [fraction_low, fraction_high], plus a
     uniform offset of +-jitter [m] per axis; its geom's radius and half-height are uniform in
     their ranges; it is drawn again while it touches anything at the start or its axis passes
-    within radius + `goal_clearance` [m] of the goal (horizontally). Goals closer to the start than
-    `min_goal_distance` are drawn again.
+    within radius + `goal_clearance` [m] of the goal (horizontally), or, with `clear_at_goal`, while
+    it touches the robot at the goal (as a local IK solve from the start brings it there, the
+    action's held maps held), at most 20 times. Then, with `clear_at_goal`, the goal is drawn again
+    with new obstacles until all hold (an error after 100 goals); without it (the v0 tasks) the last
+    obstacle drawn stays even if it touches the robot or crowds the goal. Goals closer to the start
+    than `min_goal_distance` are drawn again.
 
     Attributes:
         body: the mocap body; geom: its collision geom (a cylinder or box).
@@ -154,6 +158,7 @@ class ObstacleSampler:
     half_height: tuple[float, float] = (0.04, 0.08)
     min_goal_distance: float = 0.15
     goal_clearance: float = 0.08
+    clear_at_goal: bool = False
 
 
 @dataclass(frozen=True)
@@ -216,10 +221,12 @@ BUILTIN_TASKS: dict[str, str] = {
     "UR5ePickPlace-v0": "pick_place.toml",
     "UR5ePoseReach-v0": "pose_reach.toml",
     "UR5eObstacleReach-v0": "obstacle_reach.toml",
+    "UR5eObstacleReach-v1": "obstacle_reach_v1.toml",
     "PandaReach-v0": "panda_reach.toml",
     "PandaPickPlace-v0": "panda_pick_place.toml",
     "PandaPoseReach-v0": "panda_pose_reach.toml",
     "PandaObstacleReach-v0": "panda_obstacle_reach.toml",
+    "PandaObstacleReach-v1": "panda_obstacle_reach_v1.toml",
 }
 
 

@@ -1,0 +1,73 @@
+"""How many sampled goals do the scripted solvers of the pose and obstacle tasks reach? A table of
+success rates over N seeded episodes per task (seeds 0..N-1) on both robots, and for the obstacle
+tasks the episodes in which the robot touched the obstacle (a penalised step): at all, already on the
+first step, and still on the last (resting at the goal).
+
+The tests (`tests/envs/test_tasks.py`) assert at least 99 of 100; this prints the rate on more goals.
+
+    python benchmarks/solvers.py [--episodes 1000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+import gymnasium as gym
+import numpy as np
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver
+
+SOLVERS = {
+    "tsrl/UR5ePoseReach-v0": PoseReachSolver,
+    "tsrl/PandaPoseReach-v0": PoseReachSolver,
+    "tsrl/UR5eObstacleReach-v0": ObstacleReachSolver,
+    "tsrl/PandaObstacleReach-v0": ObstacleReachSolver,
+    "tsrl/UR5eObstacleReach-v1": ObstacleReachSolver,
+    "tsrl/PandaObstacleReach-v1": ObstacleReachSolver,
+}
+
+
+def run(env_id: str, episodes: int) -> tuple[int, np.ndarray, list[int]]:
+    """Successes; episodes with a penalised step (`info["penalty"]` not 0) at all, on the first step
+    and on the last step (3,); the seeds that failed."""
+    with warnings.catch_warnings():  # v0 is measured on purpose: no out-of-date warning
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gym.make(env_id)
+    solver = SOLVERS[env_id](env.unwrapped)
+    successes, touched, failed = 0, np.zeros(3, dtype=int), []
+    for seed in range(episodes):
+        obs, _ = env.reset(seed=seed)
+        solver.reset(obs)
+        truncated, penalised = False, []
+        while not truncated:
+            obs, _, _, truncated, info = env.step(solver.act(obs))
+            penalised.append(info.get("penalty", 0.0) != 0.0)
+        successes += int(info["is_success"])
+        touched += [any(penalised), penalised[0], penalised[-1]]
+        if not info["is_success"]:
+            failed.append(seed)
+    env.close()
+    return successes, touched, failed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=1000, help="seeded episodes per task (seeds 0..N-1)")
+    args = parser.parse_args()
+    print(
+        "| task | solver | success | episodes touching the obstacle: at all / on step 1 / on the last | failed seeds |"
+    )
+    print("| --- | --- | ---: | ---: | --- |")
+    for env_id, solver in SOLVERS.items():
+        successes, touched, failed = run(env_id, args.episodes)
+        rate = f"{successes}/{args.episodes} ({100 * successes / args.episodes:.1f}%)"
+        touching = " / ".join(map(str, touched)) if "Obstacle" in env_id else "–"
+        shown = ", ".join(map(str, failed[:8])) + (" ..." if len(failed) > 8 else "") or "none"
+        print(f"| {env_id} | {solver.__name__} | {rate} | {touching} | {shown} |", flush=True)
+    print(f"\n(numpy {np.__version__})")
+
+
+if __name__ == "__main__":
+    main()
