@@ -32,6 +32,7 @@ def test_each_algorithm_trains_and_writes_its_run_folder(algo, tmp_path):
     assert [r["env_steps"] for r in rows] == [0, 100, 200]
     assert [r["episodes"] for r in rows] == [0, 2, 4]
     assert all(0 <= r["eval_success_rate"] <= 1 for r in rows)
+    assert all(np.isnan(r["eval_penalised_rate"]) for r in rows)  # reach has no penalty
     assert np.isfinite(rows[-1]["critic_loss"])  # updates happened
     assert any(p.name.startswith("events.out.tfevents") for p in (run_dir / "tb").iterdir())
     checkpoint = latest_checkpoint(run_dir)

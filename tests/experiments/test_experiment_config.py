@@ -13,7 +13,7 @@ import pytest
 
 from tsrl.agents.config import POLICY_INPUTS, AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
-from tsrl.experiments.aggregate import Curve, compare, sort_key, summarize, variants
+from tsrl.experiments.aggregate import Curve, compare, curves, markdown_summary, sort_key, summarize, variants
 from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
 
 REPO = Path(__file__).resolve().parents[2]
@@ -144,6 +144,33 @@ def test_summary_censors_seeds_that_never_reach_a_threshold():
     assert baseline["wall_time_s_mean"] == 20.0
 
 
+def test_the_final_penalised_share_is_summarised_compared_and_shown(tmp_path):
+    def rows(seed: int, obs: str, penalised: list[float]) -> list[dict]:
+        return [
+            dict(r, eval_penalised_rate=p) for r, p in zip(_rows(seed, [0.2, 0.6, 0.9, 1.0], obs), penalised)
+        ]
+
+    fs1 = [[0.5, 0.3, 0.1, 0.0], [0.6, 0.2, 0.2, 0.1], [0.4, 0.1, 0.0, 0.0]]
+    baseline = [[0.5, 0.5, 0.4, 0.5], [0.6, 0.4, 0.4, 0.3], [0.5, 0.6, 0.5, 0.4]]
+    all_rows = [r for seed, p in enumerate(fs1) for r in rows(seed, "fs1", p)]
+    all_rows += [r for seed, p in enumerate(baseline) for r in rows(seed, "baseline", p)]
+    all_rows.sort(key=sort_key)
+    summary = summarize(all_rows)
+    finals = {name: [np.mean(p[-3:]) for p in arm] for name, arm in (("fs1", fs1), ("baseline", baseline))}
+    assert summary[1]["final_penalised_iqm"] == pytest.approx(np.mean(finals["fs1"]))  # IQM of 3 = mean
+    assert summary[0]["final_penalised_iqm"] == pytest.approx(np.mean(finals["baseline"]))
+    (less,) = compare(
+        curves(all_rows), (Comparison(a="fs1", b="baseline", metric="final_penalised", direction="less"),)
+    )
+    assert less["effect"] == pytest.approx(np.mean(finals["fs1"]) - np.mean(finals["baseline"]))
+    assert less["poi"] == 0.0 and less["p"] == pytest.approx(0.05)  # every fs1 seed below every baseline seed
+    table = markdown_summary(tmp_path, summary, [less], 1, [], [])
+    assert "final penalised episodes, IQM" in table
+    assert "final penalised" not in markdown_summary(
+        tmp_path, summarize(sorted(_rows(0, [0.5, 1.0]), key=sort_key)), [], 0, [], []
+    )
+
+
 def _flat_curve(obs: str, levels: list[float]) -> Curve:
     """Seeds whose success stays at one level: AUC and final success equal that level."""
     steps = np.array([0, 500, 1000])
@@ -219,7 +246,7 @@ def test_comparisons_are_parsed_with_their_defaults(tmp_path):
         ('a = "fs9"\nb = "fs1"', "comparison 1: unknown arm 'fs9'; accepted: fs1, baseline"),
         ('a = "fs1"\nb = "fs1"', "comparison 1: compares arm 'fs1' with itself"),
         ('a = "fs1"', "comparison 1: missing b"),
-        ('a = "fs1"\nb = "baseline"\nmetric = "steps"', "unknown metric 'steps'; accepted: auc, final_success"),
+        ('a = "fs1"\nb = "baseline"\nmetric = "steps"', "unknown metric 'steps'; accepted: auc, final_success, final_penalised"),
         ('a = "fs1"\nb = "baseline"\ndirection = "up"', "unknown direction 'up'; accepted: greater, less, two-sided"),
         ('a = "fs1"\nb = "baseline"\nmin_effect = -1', "min_effect must be a number > 0; got -1"),
         ('a = "fs1"\nb = "baseline"\nalpha = 0.1', "unknown Comparison keys ['alpha']; accepted: a, b, metric"),

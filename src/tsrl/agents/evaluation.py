@@ -1,5 +1,5 @@
-"""A policy's deterministic rollouts on seeded episodes: its success rate and final distance
-(Evaluator, evaluate_run) and a video of it (render_run)."""
+"""A policy's deterministic rollouts on seeded episodes: its success rate, final distance and share of
+penalised episodes (Evaluator, evaluate_run) and a video of it (render_run)."""
 
 from __future__ import annotations
 
@@ -29,6 +29,9 @@ class EvalResult:
     mean_final_distance: float
     """Mean of info["distance"] at the last step [m] (NaN if the env does not report it)."""
     episodes: int
+    penalised_rate: float = float("nan")
+    """Fraction of episodes with a penalised step (info["penalty"] not 0, e.g. touching an obstacle);
+    NaN if the env reports no penalty."""
 
 
 def eval_seeds(seed: int, n: int) -> list[int]:
@@ -51,6 +54,8 @@ class Evaluator:
         active = list(range(len(self.envs)))
         success = np.zeros(len(self.envs), dtype=bool)
         distance = np.full(len(self.envs), np.nan)
+        penalised = np.zeros(len(self.envs), dtype=bool)
+        reports_penalty = False
         while active:
             batch = {key: np.stack([observations[i][key] for i in active]) for key in observations[0]}
             if normalizer is not None:
@@ -59,6 +64,9 @@ class Evaluator:
             still = []
             for i, action in zip(active, actions, strict=True):
                 observations[i], _, terminated, truncated, info = self.envs[i].step(action)
+                if "penalty" in info:
+                    reports_penalty = True
+                    penalised[i] |= info["penalty"] != 0
                 if terminated or truncated:
                     success[i] = bool(info.get("is_success", False))
                     distance[i] = float(info.get("distance", np.nan))
@@ -66,7 +74,8 @@ class Evaluator:
                     still.append(i)
             active = still
         mean_distance = float(np.mean(distance)) if np.all(np.isfinite(distance)) else float("nan")
-        return EvalResult(float(np.mean(success)), mean_distance, len(self.envs))
+        penalised_rate = float(np.mean(penalised)) if reports_penalty else float("nan")
+        return EvalResult(float(np.mean(success)), mean_distance, len(self.envs), penalised_rate)
 
     def close(self) -> None:
         for env in self.envs:

@@ -5,7 +5,9 @@
     config.json        the exact, validated TrainConfig
     progress.csv       one row per evaluation: env_steps, episodes, wall_time_s (training + evaluation,
                        summed over resumed sessions), eval_time_s (its evaluation part),
-                       eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss
+                       eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss,
+                       eval_penalised_rate (share of evaluation episodes with a penalised step; empty
+                       for tasks without penalties and in runs started before it was recorded)
     tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
     checkpoints/       the last two complete checkpoints, step_<env steps>/ each: model.zip,
                        replay_buffer.pkl, vecnormalize.pkl, rng.pkl, state.json (written last)
@@ -54,6 +56,7 @@ PROGRESS_COLUMNS: tuple[str, ...] = (
     "train_success_rate",
     "critic_loss",
     "actor_loss",
+    "eval_penalised_rate",
 )
 
 

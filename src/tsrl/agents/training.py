@@ -303,11 +303,14 @@ class _SafePointCallback(BaseCallback):
             "train_success_rate": _fmt(_train_success(model)),
             "critic_loss": _fmt(losses.get("train/critic_loss")),
             "actor_loss": _fmt(losses.get("train/actor_loss")),
+            "eval_penalised_rate": _fmt(result.penalised_rate),
         }
         self.writer.writerow(row)
         self.progress_file.flush()
         model.logger.record("eval/success_rate", result.success_rate)
         model.logger.record("eval/final_distance_m", result.mean_final_distance)
+        if math.isfinite(result.penalised_rate):
+            model.logger.record("eval/penalised_rate", result.penalised_rate)
         model.logger.record("time/episodes", model._episode_num)
         model.logger.dump(step)
         self.last_eval_step = step

@@ -7,6 +7,8 @@ comparisons, the report. Statistics across seeds come from tsrl.experiments.stat
 - AUC (sample efficiency, the primary metric): per seed, the area under its success curve over those
   evaluations, normalised by their span of env steps to [0, 1]; then IQM and interval across seeds;
 - final success: per seed, the mean of the last FINAL_EVALS of those evaluations; IQM and interval;
+- final penalised episodes (tasks with penalties, e.g. touching an obstacle): per seed, the mean share
+  of evaluation episodes with a penalised step over the last FINAL_EVALS evaluations; IQM and interval;
 - env steps / episodes to a threshold (50%, 90%): per seed, the first evaluation at or above it; a seed
   that never gets there is censored at its last evaluation, and the Kaplan-Meier median is reported
   with the number of seeds that reached it (k of n); inf when fewer than half are known to have;
@@ -50,6 +52,7 @@ RESULT_COLUMNS: tuple[str, ...] = (
     "episodes",
     "wall_time_s",
     "eval_success_rate",
+    "eval_penalised_rate",
 )
 FINAL_EVALS = 3
 RESULTS_CSV = "results.csv"
@@ -130,6 +133,7 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
                     "episodes": int(r["episodes"]),
                     "wall_time_s": r["wall_time_s"],
                     "eval_success_rate": r["eval_success_rate"],
+                    "eval_penalised_rate": r.get("eval_penalised_rate", math.nan),
                 }
             )
     return rows
@@ -155,6 +159,8 @@ class Curve:
     """(m,) evaluation env steps common to all seeds."""
     success: np.ndarray
     """(n seeds, m) evaluation success rates."""
+    penalised: np.ndarray | None = None
+    """(n seeds, m) shares of evaluation episodes with a penalised step (NaN where not recorded)."""
 
     def stats(self) -> st.Estimate:
         """IQM across seeds and its 95% stratified-bootstrap interval at each evaluation."""
@@ -167,7 +173,12 @@ class Curve:
             if len(self.env_steps) > 1
             else np.full(len(self.seeds), math.nan)
         )
-        return {"auc": auc, "final_success": self.success[:, -FINAL_EVALS:].mean(axis=1)}
+        penalised = self.penalised if self.penalised is not None else np.full(self.success.shape, math.nan)
+        return {
+            "auc": auc,
+            "final_success": self.success[:, -FINAL_EVALS:].mean(axis=1),
+            "final_penalised": penalised[:, -FINAL_EVALS:].mean(axis=1),
+        }
 
 
 def curves(rows: list[dict[str, Any]]) -> list[Curve]:
@@ -186,6 +197,10 @@ def curves(rows: list[dict[str, Any]]) -> list[Curve]:
                 eval_episodes=tuple(sorted({r["eval_episodes"] for s in seeds for r in runs[s].values()})),
                 env_steps=np.array(common, dtype=int),
                 success=np.array([[runs[s][t]["eval_success_rate"] for t in common] for s in seeds]),
+                penalised=np.array(
+                    [[runs[s][t].get("eval_penalised_rate", math.nan) for t in common] for s in seeds],
+                    dtype=float,
+                ),
             )
         )
     return out
@@ -375,12 +390,22 @@ def markdown_summary(
     description = _experiment_info(results_dir).get("description", "")
     lines = [f"# {_experiment_name(results_dir)}", ""] + ([description, ""] if description else [])
     lines += [f"![learning curves]({CURVES_PNG})", ""]
-    header = ["configuration", "seeds", "eval episodes", "AUC, IQM", "final success, IQM", "at env steps"]
+    penalties = any(math.isfinite(r["final_penalised_iqm"]) for r in summary)
+    header = ["configuration", "seeds", "eval episodes", "AUC, IQM", "final success, IQM"]
+    header += ["final penalised episodes, IQM"] * penalties + ["at env steps"]
     header += [f"env steps to {round(t * 100)}%" for t in THRESHOLDS] + ["wall time [s]"]
-    lines += ["| " + " | ".join(header) + " |", "| --- | ---: | ---: | --- | --- | ---: | --- | --- | ---: |"]
+    align = ["---", "---:", "---:", "---", "---"] + ["---"] * penalties + ["---:"]
+    align += ["---"] * len(THRESHOLDS) + ["---:"]
+    lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
     for r, label in zip(summary, config_labels([row_key(r) for r in summary]), strict=True):
-        cells = [label, str(r["seeds"]), r["eval_episodes"]]
-        cells += [_interval(r, "auc"), _interval(r, "final_success"), f"{r['final_env_steps']:,}"]
+        cells = [
+            label,
+            str(r["seeds"]),
+            r["eval_episodes"],
+            _interval(r, "auc"),
+            _interval(r, "final_success"),
+        ]
+        cells += [_interval(r, "final_penalised")] * penalties + [f"{r['final_env_steps']:,}"]
         for pct in (round(t * 100) for t in THRESHOLDS):
             median = r[f"env_steps_to_{pct}_km_median"]
             shown = f"{median:,.0f}" if math.isfinite(median) else f"> {r['final_env_steps']:,}"

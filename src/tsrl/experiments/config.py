@@ -34,6 +34,8 @@ other settings that differ between runs of a results folder (empty within one ex
 COMPARISON_METRICS: dict[str, str] = {
     "auc": "area under the success curve over env steps, normalised to [0, 1] (sample efficiency)",
     "final_success": "mean success rate of the last evaluations",
+    "final_penalised": "mean share of evaluation episodes with a penalised step (e.g. touching an obstacle) in "
+    "the last evaluations; tasks with penalties only",
 }
 DIRECTIONS: tuple[str, ...] = ("greater", "less", "two-sided")
 
@@ -48,7 +50,7 @@ class Comparison:
     b: str
     """The arm `a` is compared with."""
     metric: str = "auc"
-    """auc or final_success (COMPARISON_METRICS)."""
+    """auc, final_success or final_penalised (COMPARISON_METRICS)."""
     direction: str = "greater"
     """The registered hypothesis: metric(a) greater than, less than, or different from (two-sided)
     metric(b); it sets the side of the test."""
