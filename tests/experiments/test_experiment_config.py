@@ -36,7 +36,7 @@ learning_starts = 100
      ("paper-observations-v2-hard", 50, 8_000),
      ("obstacle-features", 20, 15_000), ("pick-place-features", 20, 50_000),
      ("pick-place-suction", 20, 50_000), ("pick-place-suction-ablation", 20, 50_000),
-     ("pick-place-box-tcp", 20, 50_000)],
+     ("pick-place-box-tcp", 20, 50_000), ("obstacle-features-v1", 20, 15_000)],
 )  # fmt: skip
 def test_shipped_definitions_load_and_expand(name, runs, budget, monkeypatch):
     monkeypatch.chdir(REPO)

@@ -203,7 +203,7 @@ def test_experiment_on_a_local_ray_instance(tmp_path):
     [
         (
             ["experiment", "no-such-experiment"],
-            "known: action-ablation, action-ablation-v2, obstacle-features, paper-observations, "
+            "known: action-ablation, action-ablation-v2, obstacle-features, obstacle-features-v1, paper-observations, "
             + "paper-observations-v2, paper-observations-v2-hard, pick-place, pick-place-box-tcp, pick-place-features, pick-place-suction, "
             + "pick-place-suction-ablation, pose-features, "
             + "quick-reach",
