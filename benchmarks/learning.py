@@ -166,7 +166,8 @@ def summarize(label: str, run_dirs: list[Path], train_time: bool = False) -> Non
 
 def record_benchmark_demos(out_dir: Path) -> Path:
     """The demos suite's file: 100 successful scripted pick-and-place episodes (fs1), recorded once."""
-    from tsrl.agents.demos import record_demos, save_demos, summary_line
+    from tsrl.agents.demo_files import save_demos, summary_line
+    from tsrl.agents.demonstrators import record_demos
 
     path = out_dir / "demos" / f"pick-place-fs1-scripted-{DEMO_EPISODES}.npz"
     if not path.is_file():

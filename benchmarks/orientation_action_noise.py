@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents.demos import ScriptedPickPlace
+from tsrl.agents.demonstrators import ScriptedPickPlace
 from tsrl.envs.actions import ACTION_PRESETS
 from tsrl.taskmaps import parse_spec
 

@@ -197,7 +197,7 @@ class Demo:
 
 @dataclass(frozen=True)
 class Demos:
-    """Record demonstration episodes for `tsrl train --demos FILE` (tsrl.agents.demos)."""
+    """Record demonstration episodes for `tsrl train --demos FILE` (tsrl.agents.demonstrators)."""
 
     command: Positional[Literal["record"]]
     """record: a demonstrator's successful episodes into a .npz file (the environment's scripted
@@ -224,7 +224,8 @@ class Demos:
             raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
 
     def run(self) -> int:
-        from .agents.demos import record_demos, save_demos, summary_line
+        from .agents.demo_files import save_demos, summary_line
+        from .agents.demonstrators import record_demos
 
         demos = record_demos(
             self.env, self.episodes, self.obs, self.action, self.policy, self.seed, self.keep_failed

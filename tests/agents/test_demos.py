@@ -23,19 +23,17 @@ from training_helpers import fill_with_random_episodes, tiny
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import TrainConfig, make_agent, make_vec_env, resume, train
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demos import (
+from tsrl.agents.demo_files import (
     DEMOS_RECORD,
     DemoFileError,
     Demonstrations,
-    DemoReplayBuffer,
     DemoSpec,
     demo_record,
-    demo_seeds,
     load_demos,
-    q_filtered_bc_loss,
-    record_demos,
     save_demos,
 )
+from tsrl.agents.demonstrators import demo_seeds, record_demos
+from tsrl.agents.demos import DemoReplayBuffer, q_filtered_bc_loss
 from tsrl.agents.run_folder import latest_checkpoint
 
 REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"

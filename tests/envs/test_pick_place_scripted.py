@@ -3,7 +3,7 @@ public task-map API) succeeds in >= 95 of 100 seeded episodes."""
 
 import pytest
 
-from tsrl.agents.demos import record_demos
+from tsrl.agents.demonstrators import record_demos
 
 
 @pytest.mark.parametrize("env_id", ["tsrl/UR5ePickPlace-v0", "tsrl/PandaPickPlace-v0"])

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 from cli_runner import run_tsrl
 
-from tsrl.agents.demos import load_demos, sha256
+from tsrl.agents.demo_files import load_demos, sha256
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import Comparison, load_experiment

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents.demos import record_demos
+from tsrl.agents.demonstrators import record_demos
 from tsrl.assets import load_model
 from tsrl.exceptions import InvalidConfig, UnknownName
 from tsrl.taskmaps import FrameCache, Suction, parse_spec

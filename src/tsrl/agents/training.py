@@ -29,7 +29,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import TrainConfig, from_dict
-from .demos import DEMOS_RECORD, attach_bc_loss, check_demo_record, demo_record
+from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
+from .demos import attach_bc_loss
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
 from .plotting import plot_learning_curves

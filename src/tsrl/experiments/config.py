@@ -81,7 +81,7 @@ class DemoRecipe:
     them (`[agent.demos]` sets batch share, BC weight and Q-filter)."""
 
     episodes: int
-    """Successful episodes to record (the env's scripted demonstrator, tsrl.agents.demos.SCRIPTED)."""
+    """Successful episodes to record (the env's scripted demonstrator, tsrl.agents.demonstrators.SCRIPTED)."""
     seed: int = 0
     """Recording seed: the episodes' seeds are drawn from their own stream (demo_seeds)."""
 
@@ -202,7 +202,7 @@ class ExperimentConfig:
             raise InvalidConfig(f"demos must be a table ([demos]) with episodes and seed; got {self.demos!r}")
         if self.agent.demos.path is not None:
             raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
-        from ..agents.demos import SCRIPTED, SCRIPTED_ACTIONS
+        from ..agents.demonstrators import SCRIPTED, SCRIPTED_ACTIONS
 
         for env in self.env:
             if env not in SCRIPTED:

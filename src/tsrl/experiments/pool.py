@@ -83,7 +83,8 @@ def run_experiment(
 def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: Progress) -> None:
     """Records the demonstration file of each configuration in `todo` that has none yet (written whole,
     then renamed: an interrupted recording leaves no file)."""
-    from ..agents.demos import record_demos, save_demos, summary_line
+    from ..agents.demo_files import save_demos, summary_line
+    from ..agents.demonstrators import record_demos
 
     for cfg in todo:
         path = Path(cfg.agent.demos.path or "")

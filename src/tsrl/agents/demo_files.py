@@ -1,0 +1,280 @@
+"""Demonstration files (for learning from demonstrations, tsrl.agents.demos): the data, its .npz
+format, writing and checked reading, and what a run folder records about the file it trained with.
+
+`save_demos` / `load_demos` write and read demonstrations as one `.npz` file (format below), checked on
+load: a missing, truncated or corrupt file, NaN/inf, or a file from another environment, observation
+spec or action mode is one `DemoFileError` that says what differs. `tsrl.agents.demonstrators` records
+them.
+
+## File format (version 1)
+One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N episodes of T steps:
+
+| array | shape | dtype | meaning |
+| --- | --- | --- | --- |
+| meta | () | str | JSON: format "tsrl-demos", version, env_id, obs (as given), obs_spec (the env's), action (mode), demonstrator, tsrl_version, attempted (episodes run), kept |
+| observation | (N, T+1, d) | float64 | `observation` at reset and after each step |
+| achieved_goal | (N, T+1, g) | float64 | |
+| desired_goal | (N, T+1, g) | float64 | |
+| actions | (N, T, k) | float32 | actions executed, in [-1, 1] |
+| rewards | (N, T) | float32 | env rewards |
+| is_success | (N, T) | bool | `info["is_success"]` after each step |
+| seeds | (N,) | int64 | `env.reset(seed=...)` of each episode |
+
+Every episode has the environment's full length (T steps, ended by its time limit); an episode cut
+short (a physics blow-up) is dropped while recording.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..exceptions import InvalidConfig, TsrlError
+from .config import TrainConfig
+
+FORMAT = "tsrl-demos"
+VERSION = 1
+#: Arrays of a demonstration file besides `meta`.
+ARRAYS: tuple[str, ...] = (
+    "observation",
+    "achieved_goal",
+    "desired_goal",
+    "actions",
+    "rewards",
+    "is_success",
+    "seeds",
+)
+OBS_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
+#: A run folder's record of the demonstrations it trained with (path, sha256, counts).
+DEMOS_RECORD = "demos.json"
+
+
+class DemoFileError(TsrlError):
+    """A demonstration file that is missing, unreadable, inconsistent or for another environment."""
+
+    def __init__(self, path: Path | str, why: str):
+        super().__init__(f"demonstration file {path}: {why}")
+
+
+@dataclass(frozen=True)
+class DemoSpec:
+    """What a demonstration must match to be used on an environment."""
+
+    env_id: str
+    obs_spec: str
+    action: str
+    obs_dim: int
+    goal_dim: int
+    action_dim: int
+
+    @classmethod
+    def of(cls, env: gym.Env) -> DemoSpec:
+        """The spec of a tsrl environment (made with gym.make)."""
+        base = env.unwrapped
+        if not hasattr(base, "obs_spec") or not hasattr(base, "relabel"):
+            raise InvalidConfig(f"{env.spec.id if env.spec else env}: demonstrations need a tsrl environment")
+        space = base.observation_space
+        return cls(
+            env_id=env.spec.id if env.spec is not None else type(base).__name__,
+            obs_spec=base.obs_spec,
+            action=base.action_mode,
+            obs_dim=int(space["observation"].shape[0]),
+            goal_dim=int(space["desired_goal"].shape[0]),
+            action_dim=int(base.action_space.shape[0]),
+        )
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """N demonstration episodes of T steps (shapes in the module docstring) and their metadata."""
+
+    observation: np.ndarray
+    achieved_goal: np.ndarray
+    desired_goal: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    is_success: np.ndarray
+    seeds: np.ndarray
+    meta: dict[str, Any]
+
+    @property
+    def n_episodes(self) -> int:
+        return int(self.actions.shape[0])
+
+    @property
+    def episode_steps(self) -> int:
+        return int(self.actions.shape[1])
+
+    @property
+    def n_transitions(self) -> int:
+        return self.n_episodes * self.episode_steps
+
+    @property
+    def spec(self) -> DemoSpec:
+        m = self.meta
+        return DemoSpec(
+            m["env_id"],
+            m["obs_spec"],
+            m["action"],
+            self.observation.shape[2],
+            self.desired_goal.shape[2],
+            self.actions.shape[2],
+        )
+
+
+def save_demos(demos: Demonstrations, path: Path | str) -> Path:
+    """Writes `demos` to `path` (.npz; written whole, then renamed into place). Returns the path."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise InvalidConfig(f"a demonstration file ends in .npz; got {path}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
+    arrays = {name: getattr(demos, name) for name in ARRAYS}
+    np.savez_compressed(tmp, meta=np.array(json.dumps(demos.meta)), **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def load_demos(path: Path | str, expect: DemoSpec | None = None) -> Demonstrations:
+    """Reads and checks a demonstration file; with `expect`, it must match that environment spec.
+
+    Raises DemoFileError (missing, truncated or corrupt, another format, inconsistent shapes, NaN/inf,
+    actions outside [-1, 1], or a spec that differs from `expect`, naming the differences).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DemoFileError(path, "no such file")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            missing = [name for name in ("meta", *ARRAYS) if name not in f.files]
+            if missing:
+                raise DemoFileError(path, f"not a tsrl demonstration file: no {', '.join(missing)}")
+            arrays = {name: f[name] for name in ARRAYS}
+            meta_text = str(f["meta"])
+    except DemoFileError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
+        raise DemoFileError(path, f"unreadable (truncated or corrupt?): {err}") from None
+    try:
+        meta = json.loads(meta_text)
+    except json.JSONDecodeError as err:
+        raise DemoFileError(path, f"meta is not valid JSON: {err}") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise DemoFileError(path, f"not a {FORMAT} file (meta format {meta.get('format')!r})")
+    if meta.get("version") != VERSION:
+        raise DemoFileError(
+            path, f"format version {meta.get('version')!r}; this tsrl reads version {VERSION}"
+        )
+    for key in ("env_id", "obs_spec", "action"):
+        if not isinstance(meta.get(key), str):
+            raise DemoFileError(path, f"meta has no {key}")
+    _check_shapes(path, arrays)
+    for name in ARRAYS:
+        a = arrays[name]
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            episode = int(np.argwhere(~np.isfinite(a))[0][0])
+            raise DemoFileError(path, f"{name} holds NaN or inf (episode {episode})")
+    if arrays["actions"].size and np.abs(arrays["actions"]).max() > 1:
+        raise DemoFileError(path, "actions outside [-1, 1]")
+    demos = Demonstrations(**arrays, meta=meta)
+    if expect is not None:
+        _check_spec(path, demos.spec, expect)
+    return demos
+
+
+def _check_shapes(path: Path, a: dict[str, np.ndarray]) -> None:
+    obs = a["observation"]
+    if obs.ndim != 3:
+        raise DemoFileError(path, f"observation has shape {obs.shape}; expected (episodes, steps + 1, dim)")
+    n, t1 = obs.shape[:2]
+    t = t1 - 1
+    expected = {
+        "achieved_goal": (n, t1, None),
+        "desired_goal": (n, t1, None),
+        "actions": (n, t, None),
+        "rewards": (n, t),
+        "is_success": (n, t),
+        "seeds": (n,),
+    }
+    for name, shape in expected.items():
+        got = a[name].shape
+        if len(got) != len(shape) or any(s is not None and s != g for s, g in zip(shape, got, strict=True)):
+            want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+            raise DemoFileError(path, f"{name} has shape {got}; expected {want} (truncated or edited?)")
+    if a["achieved_goal"].shape != a["desired_goal"].shape:
+        raise DemoFileError(path, "achieved_goal and desired_goal differ in shape")
+    if n and t < 1:
+        raise DemoFileError(path, "episodes without steps")
+
+
+def _check_spec(path: Path, got: DemoSpec, expect: DemoSpec) -> None:
+    diffs = [
+        f"{name} {getattr(got, name)!r} (this run: {getattr(expect, name)!r})"
+        for name in ("env_id", "obs_spec", "action", "obs_dim", "goal_dim", "action_dim")
+        if getattr(got, name) != getattr(expect, name)
+    ]
+    if diffs:
+        raise DemoFileError(path, "recorded for another environment: " + "; ".join(diffs))
+
+
+def sha256(path: Path | str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def demo_record(cfg: TrainConfig) -> dict[str, Any] | None:
+    """What a run folder records about its demonstrations (absolute path, sha256, counts), after
+    checking the file against the run's environment; None without demonstrations."""
+    if not cfg.agent.demos.enabled:
+        return None
+    path = Path(cfg.agent.demos.path).resolve()  # type: ignore[arg-type]
+    env = gym.make(cfg.gym_id, **cfg.env_kwargs)
+    try:
+        demos = load_demos(path, DemoSpec.of(env))
+    finally:
+        env.close()
+    return {
+        "path": str(path),
+        "sha256": sha256(path),
+        "episodes": demos.n_episodes,
+        "transitions": demos.n_transitions,
+        "demonstrator": demos.meta.get("demonstrator"),
+    }
+
+
+def check_demo_record(run_dir: Path | str, cfg: TrainConfig) -> None:
+    """Raises DemoFileError if the run's demonstration file no longer has the recorded sha256
+    (checked when a run restarts from scratch; a checkpoint holds its own copy of the demonstrations)."""
+    record_path = Path(run_dir) / DEMOS_RECORD
+    if not cfg.agent.demos.enabled or not record_path.is_file():
+        return
+    recorded = json.loads(record_path.read_text())
+    now = demo_record(cfg)
+    assert now is not None
+    if now["sha256"] != recorded["sha256"]:
+        raise DemoFileError(
+            now["path"],
+            f"changed since the run started (sha256 {now['sha256'][:12]}, recorded {recorded['sha256'][:12]})",
+        )
+
+
+def summary_line(demos: Demonstrations, path: Path | str) -> str:
+    m = demos.meta
+    rate = m["kept"] / m["attempted"] if m["attempted"] else math.nan
+    return (
+        f"wrote {path}: {demos.n_episodes} episodes x {demos.episode_steps} steps of {m['env_id']} "
+        f"(obs {m['obs']!r}, action {m['action']}) from {m['demonstrator']}; "
+        f"kept {m['kept']} of {m['attempted']} attempted ({rate:.0%})"
+    )
