@@ -205,6 +205,16 @@ def test_clear_at_goal_needs_a_tcp_position_goal(tmp_path):
         gym.make(TASK_ENV_ID, task=_task_file(tmp_path, text))
 
 
+def test_an_obstacle_that_never_fits_is_an_error_not_a_silent_violation(tmp_path):
+    text = builtin_task_path("UR5eObstacleReach-v1").read_text()
+    text = text.replace("clear_at_goal = true", "clear_at_goal = true\ngoal_clearance = 1.0")
+    env = gym.make(TASK_ENV_ID, task=_task_file(tmp_path, text))
+    with pytest.raises(
+        InvalidConfig, match=r"no goal and obstacle drawn in 100 tries .* 1.0 m of room \(goal_clearance\)"
+    ):
+        env.reset(seed=0)
+
+
 def _task_file(tmp_path, text: str) -> str:
     path = tmp_path / "task.toml"
     path.write_text(text)
