@@ -208,11 +208,16 @@ def test_clear_at_goal_needs_a_tcp_position_goal(tmp_path):
 def test_an_obstacle_that_never_fits_is_an_error_not_a_silent_violation(tmp_path):
     text = builtin_task_path("UR5eObstacleReach-v1").read_text()
     text = text.replace("clear_at_goal = true", "clear_at_goal = true\ngoal_clearance = 1.0")
-    env = gym.make(TASK_ENV_ID, task=_task_file(tmp_path, text))
-    with pytest.raises(
-        InvalidConfig, match=r"no goal and obstacle drawn in 100 tries .* 1.0 m of room \(goal_clearance\)"
-    ):
+    path = _task_file(tmp_path, text)
+    env = gym.make(TASK_ENV_ID, task=path)
+    with pytest.raises(InvalidConfig) as err:
         env.reset(seed=0)
+    message = str(err.value)
+    assert (
+        message.startswith(f"{path}: obstacle: no goal and obstacle drawn in 100 tries")
+        and "\n" not in message
+    )
+    assert "1.0 m of room (goal_clearance)" in message
 
 
 def _task_file(tmp_path, text: str) -> str:

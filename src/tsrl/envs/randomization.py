@@ -82,7 +82,7 @@ class Randomizer:
             if not task.obstacle.clear_at_goal:
                 return  # v0 tasks keep the last draw of the obstacle
         raise InvalidConfig(
-            f"obstacle: no goal and obstacle drawn in {_GOAL_AND_OBSTACLE_TRIES} tries leave the robot untouched at "
+            f"{task.source or task.name}: obstacle: no goal and obstacle drawn in {_GOAL_AND_OBSTACLE_TRIES} tries leave the robot untouched at "
             f"the start and at the goal with {task.obstacle.goal_clearance} m of room (goal_clearance); widen the "
             "goal box or lower goal_clearance or the obstacle's size"
         )
