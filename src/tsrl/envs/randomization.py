@@ -136,6 +136,7 @@ class Randomizer:
         the goal (at most `_OBSTACLE_TRIES` draws; the last one stays). Returns whether it meets them."""
         o = self.task.obstacle
         mocap, geom, _ = self._obstacle
+        robot_at_goal = False  # solved once per goal, when a draw first needs it
         for _ in range(_OBSTACLE_TRIES):
             u = rng.uniform(o.fraction_low, o.fraction_high)
             center = start + u * (goal - start) + rng.uniform(-o.jitter, o.jitter, 3)
@@ -147,7 +148,12 @@ class Randomizer:
             mujoco.mj_collision(self.model, data)
             if _touches(data, geom) or np.linalg.norm((goal - center)[:2]) < radius + o.goal_clearance:
                 continue
-            if not o.clear_at_goal or not self._at_goal.touches(data, goal, geom):
+            if not o.clear_at_goal:
+                return True
+            if not robot_at_goal:
+                self._at_goal.solve(data, goal)
+                robot_at_goal = True
+            if not self._at_goal.touches(data.mocap_pos, geom):
                 return True
         return False
 
@@ -166,7 +172,7 @@ def _touches(data: mujoco.MjData, geom: int) -> bool:
 class _RobotAtGoal:
     """The robot at a position goal as the task's IK brings it there: a local solve (no restarts) from
     the start configuration to the goal with the action's held maps held (the cup down), in its own
-    MjData that mirrors the obstacle's placement."""
+    MjData; solved once per goal, then checked against each obstacle drawn for it."""
 
     def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
         if task.goal.map != f"position({robot.tcp})":
@@ -182,16 +188,19 @@ class _RobotAtGoal:
         self._solver = DlsSolver(model, parse_spec(maps, model, robot.joints), robot.joints, options)
         self._data = mujoco.MjData(model)
 
-    def touches(self, data: mujoco.MjData, goal: np.ndarray, geom: int) -> bool:
-        """Whether `geom` touches anything with the robot solved to `goal` (3,) from data's state."""
+    def solve(self, data: mujoco.MjData, goal: np.ndarray) -> None:
+        """Solves the robot from data's state (its start) to `goal` (3,), in its own MjData."""
         at_goal = self._data
-        at_goal.qpos[:], at_goal.mocap_pos[:], at_goal.mocap_quat[:] = (
-            data.qpos,
-            data.mocap_pos,
-            data.mocap_quat,
-        )
+        at_goal.qpos[:], at_goal.mocap_quat[:] = data.qpos, data.mocap_quat
         self._solver.solve(at_goal, np.concatenate([goal, self._held]))
-        mujoco.mj_collision(self._solver.model, at_goal)
+
+    def touches(self, mocap_pos: np.ndarray, geom: int) -> bool:
+        """Whether `geom` touches anything with the robot as last solved and the mocap bodies at
+        `mocap_pos` (n_mocap, 3)."""
+        model, at_goal = self._solver.model, self._data
+        at_goal.mocap_pos[:] = mocap_pos
+        mujoco.mj_kinematics(model, at_goal)
+        mujoco.mj_collision(model, at_goal)
         return _touches(at_goal, geom)
 
 
