@@ -1,7 +1,8 @@
 """How many sampled goals do the scripted solvers of the pose and obstacle tasks reach? A table of
 success rates over N seeded episodes per task (seeds 0..N-1) on both robots, and for the obstacle
-tasks the episodes in which the robot touched the obstacle (a penalised step): at all, already on the
-first step, and still on the last (resting at the goal).
+tasks the episodes in which the obstacle is in contact at reset (before any action), and those in which
+the robot touched it (a penalised step): at all, already on the first step, and still on the last
+(resting at the goal).
 
 The tests (`tests/envs/test_tasks.py`) assert at least 99 of 100; this prints the rate on more goals.
 
@@ -14,6 +15,7 @@ import argparse
 import warnings
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
@@ -30,22 +32,29 @@ SOLVERS = {
 
 
 def run(env_id: str, episodes: int) -> tuple[int, np.ndarray, list[int]]:
-    """Successes; episodes with a penalised step (`info["penalty"]` not 0) at all, on the first step
-    and on the last step (3,); the seeds that failed."""
+    """Successes; episodes with the obstacle in a contact at reset, and with a penalised step
+    (`info["penalty"]` not 0) at all, on the first step and on the last step (4,); the seeds that
+    failed."""
     with warnings.catch_warnings():  # v0 is measured on purpose: no out-of-date warning
         warnings.simplefilter("ignore", DeprecationWarning)
         env = gym.make(env_id)
-    solver = SOLVERS[env_id](env.unwrapped)
-    successes, touched, failed = 0, np.zeros(3, dtype=int), []
+    base = env.unwrapped
+    obstacle = base.model.geom(base.task.obstacle.geom).id if base.task.obstacle else None
+    solver = SOLVERS[env_id](base)
+    successes, touched, failed = 0, np.zeros(4, dtype=int), []
     for seed in range(episodes):
         obs, _ = env.reset(seed=seed)
+        at_reset = False
+        if obstacle is not None:
+            mujoco.mj_collision(base.model, base.data)
+            at_reset = any(obstacle in c.geom for c in base.data.contact[: base.data.ncon])
         solver.reset(obs)
         truncated, penalised = False, []
         while not truncated:
             obs, _, _, truncated, info = env.step(solver.act(obs))
             penalised.append(info.get("penalty", 0.0) != 0.0)
         successes += int(info["is_success"])
-        touched += [any(penalised), penalised[0], penalised[-1]]
+        touched += [at_reset, any(penalised), penalised[0], penalised[-1]]
         if not info["is_success"]:
             failed.append(seed)
     env.close()
@@ -57,13 +66,14 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=1000, help="seeded episodes per task (seeds 0..N-1)")
     args = parser.parse_args()
     print(
-        "| task | solver | success | episodes touching the obstacle: at all / on step 1 / on the last | failed seeds |"
+        "| task | solver | success | episodes: obstacle in contact at reset; touched at all / on step 1 / on the last "
+        "| failed seeds |"
     )
     print("| --- | --- | ---: | ---: | --- |")
     for env_id, solver in SOLVERS.items():
         successes, touched, failed = run(env_id, args.episodes)
         rate = f"{successes}/{args.episodes} ({100 * successes / args.episodes:.1f}%)"
-        touching = " / ".join(map(str, touched)) if "Obstacle" in env_id else "–"
+        touching = f"{touched[0]}; " + " / ".join(map(str, touched[1:])) if "Obstacle" in env_id else "–"
         shown = ", ".join(map(str, failed[:8])) + (" ..." if len(failed) > 8 else "") or "none"
         print(f"| {env_id} | {solver.__name__} | {rate} | {touching} | {shown} |", flush=True)
     print(f"\n(numpy {np.__version__})")
