@@ -342,6 +342,7 @@ def test_no_demonstration_rows_means_todays_agent_bit_for_bit(reach_demos, tmp_p
     variants = [
         DemoConfig(path=str(empty), batch_share=0.25, bc_weight=1.0),  # a file with zero demonstrations
         DemoConfig(path=str(reach_demos), batch_share=0.0, bc_weight=0.0),  # demonstrations never drawn
+        DemoConfig(path=str(reach_demos), batch_share=0.25, bc_weight=0.0),  # a BC weight of 0: off
     ]
     for demos in variants:
         got = _parameters_after_updates(tiny(demos=demos))

@@ -93,7 +93,8 @@ class DemoConfig:
     (Nair et al.: 128 of 1024)."""
     bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
     """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
-    next to the actor's -mean Q; 0: none (demonstrations are then replay data only)."""
+    next to the actor's -mean Q; 0: demonstrations off (no demonstration rows, no BC loss: the agent
+    without demonstrations, bit for bit)."""
     q_filter: Annotated[bool, arg(name="demos-q-filter")] = True
     """Clone a demonstrated action only where the critic rates it above the actor's:
     Q(s, a_demo) > Q(s, pi(s)) (Nair et al.'s Q-filter)."""

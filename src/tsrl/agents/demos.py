@@ -137,7 +137,7 @@ def attach_demos(
     demos = load_demos(cfg.path, DemoSpec.of(_first_env(model.env)))
     buffer = model.replay_buffer
     assert isinstance(buffer, DemoReplayBuffer)
-    if cfg.batch_share == 0:  # no demonstration rows: nothing to fill, clone or normalise
+    if cfg.batch_share == 0 or cfg.bc_weight == 0:  # demonstrations off: today's agent, bit for bit
         return demos
     buffer.set_demos(demos)
     if normalizer is not None and demos.n_episodes:
