@@ -16,7 +16,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import tsrl  # noqa: F401  (registers the environments)
+import tsrl  # registers the environments
 
 REFERENCE = Path(__file__).parent / "data" / "rollouts.npz"
 EPISODES = 4  # of 50 steps each: 200 steps per case
@@ -39,7 +39,11 @@ CASES: tuple[tuple[str, str, dict, str], ...] = (
     ("pick_fs0_orient", "tsrl/UR5ePickPlace-v0", {"obs": "fs0", "action": "taskspace_orient"}, "random"),
     ("pick_simple_joint", "tsrl/UR5ePickPlace-v0", {"obs": "simple", "action": "joint"}, "random"),
     ("pick_grasp", "tsrl/UR5ePickPlace-v0", {"obs": GRASP_SPEC, "action": "taskspace"}, "grasp"),
+    # Every registered task as its file defines it (observation, action, goal, penalties).
+    *((f"task_{env_id.removeprefix('tsrl/')}", env_id, {}, "random") for env_id in tsrl.ENV_IDS),
 )
+#: Info entries recorded for every task; a task's other numeric entries (angle, penalty, ...) are
+#: recorded too, by the names its reset info has.
 INFO_KEYS = ("is_success", "distance", "ik_error")
 
 
@@ -55,15 +59,18 @@ def rollout(env_id: str, kwargs: dict, policy: str) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(0)
     env.action_space.seed(0)
     rows: dict[str, list] = {k: [] for k in ("observation", "achieved_goal", "desired_goal", "reward", "end")}
-    rows |= {k: [] for k in INFO_KEYS}
     rows["unstable"] = []
+    info_keys: tuple[str, ...] = ()
     for episode in range(EPISODES):
         obs, info = env.reset(seed=100 + episode)
+        if not info_keys:
+            info_keys = (*INFO_KEYS, *sorted(set(info) - set(INFO_KEYS) - {"physics_unstable"}))
+            rows |= {k: [] for k in info_keys}
         carrying, done = False, False
         while True:
             for k in ("observation", "achieved_goal", "desired_goal"):
                 rows[k].append(obs[k])
-            for k in INFO_KEYS:
+            for k in info_keys:
                 rows[k].append(float(info[k]))
             rows["unstable"].append(bool(info.get("physics_unstable", False)))
             if done:
