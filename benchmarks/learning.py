@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.stats
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -38,7 +39,6 @@ from fetch_compat import register_fetch_envs
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
 from tsrl.agents.config import NATIVE, DemoConfig
-from tsrl.agents.plotting import mean_ci95
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 THRESHOLDS = (0.5, 0.9, 0.95)
@@ -121,6 +121,17 @@ def first_reaching(
         if r["eval_success_rate"] >= threshold:
             return r["env_steps"], r["wall_time_s"] - (r["eval_time_s"] if train_time else 0.0)
     return math.nan, math.nan
+
+
+def mean_ci95(values: np.ndarray) -> tuple[float, float]:
+    """Mean over seeds and the half-width of its 95% Student-t interval (0 for one seed): this table's
+    summary, as docs/training.md quotes it. Learning curves and studies use the IQM and bootstrap
+    interval of tsrl.experiments.statistics."""
+    values = np.asarray(values, dtype=float)
+    if len(values) < 2:
+        return float(values.mean()), 0.0
+    sem = values.std(ddof=1) / math.sqrt(len(values))
+    return float(values.mean()), float(scipy.stats.t.ppf(0.975, len(values) - 1) * sem)
 
 
 def summarize(label: str, run_dirs: list[Path], train_time: bool = False) -> None:
