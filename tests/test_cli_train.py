@@ -181,6 +181,10 @@ def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
     [
         (["--seed", "3"], "only --total-timesteps may be given with it, got --seed"),
         (["--her-strategy", "final", "--algo", "td3"], "got --algo, --her-strategy"),
+        (["--demos-batch-share", "0.2"], "got --demos-batch-share"),  # flags as tyro defines them
+        (["--demos", "demos.npz", "--no-demos-q-filter"], "got --demos, --no-demos-q-filter"),
+        (["--demos-path=demos.npz"], "got --demos-path"),  # the alias the user typed
+        (["--env", "tsrl/PandaReach-v0"], "got --env"),
         (["--total-timesteps", "100"], "--total-timesteps 100 is below the 200 env steps already done"),
     ],
 )

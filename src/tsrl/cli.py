@@ -84,7 +84,12 @@ class Train:
             again = tyro.cli(
                 Train, args=argv, prog="tsrl train", default=dataclasses.replace(self, config=run_cfg)
             )
-        given = [_flag(path) for path in _differences(again.config, run_cfg) if path != "total_timesteps"]
+        flags = _train_flags()
+        given = [
+            _given(flags[path], argv)
+            for path in _differences(again.config, run_cfg)
+            if path != "total_timesteps"
+        ]
         if given:
             raise InvalidConfig(
                 f"--resume continues a run with its own config.json; only --total-timesteps may be "
@@ -353,10 +358,30 @@ def _differences(ours: Any, theirs: Any, prefix: str = "") -> list[str]:
     return out
 
 
-def _flag(path: str) -> str:
-    """The option of a TrainConfig field path: agent.her.strategy -> --her-strategy, agent.algo -> --algo."""
-    *parents, leaf = path.split(".")
-    return "--" + ("her-" if parents[-1:] == ["her"] else "") + leaf.replace("_", "-")
+def _train_flags() -> dict[str, tuple[str, ...]]:
+    """`tsrl train`'s option strings by TrainConfig field path, as tyro builds them from the
+    dataclasses: {"agent.demos.batch_share": ("--demos-batch-share",), "env_id": ("--env", ...)}."""
+    import warnings
+
+    # get_parser is tyro's one view of its flags (deprecated, kept through the pinned 1.0 series).
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        parser = tyro.extras.get_parser(Train, prog="tsrl train")
+    prefix = "config."
+    return {
+        action.dest.removeprefix(prefix).replace("-", "_"): tuple(action.option_strings)
+        for action in parser._actions
+        if action.dest.startswith(prefix)
+    }
+
+
+def _given(options: tuple[str, ...], argv: Sequence[str]) -> str:
+    """The option string among `options` that `argv` used (--demos or --demos-path, --no-x), else all."""
+    for token in argv:
+        name = token.split("=", 1)[0]
+        if name in options:
+            return name
+    return "/".join(options)
 
 
 if __name__ == "__main__":
