@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 # Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
 export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
 
-.PHONY: install demo render-demo test lint bench
+.PHONY: install demo render-demo test lint type bench
 
 install: $(VENV)/.installed
 
@@ -23,6 +23,9 @@ test: install  ## the test suite, without the slow checks
 
 lint:
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+type:  ## mypy over src/tsrl ([tool.mypy] in pyproject.toml)
+	$(BIN)/mypy
 
 bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning: benchmarks/learning.py
 	$(BIN)/python -m pip install -q -e ".[bench]"
