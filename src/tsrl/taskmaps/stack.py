@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -15,6 +16,19 @@ from .velocity import Velocity
 _F64 = np.dtype(np.float64)
 
 
+class _Views(NamedTuple):
+    """Views into the output buffers y (dim,) and J (dim, nv) of a `Stack`'s last call, by part."""
+
+    y: np.ndarray  # the buffers sliced
+    J: np.ndarray
+    own: list[tuple[TaskMap, np.ndarray, np.ndarray]]
+    """Parts evaluated on their own: (part, y rows, J rows)."""
+    velocities: list[tuple[Velocity, np.ndarray, np.ndarray, np.ndarray]]
+    """Velocity parts whose inner map is an earlier part: (part, the inner map's J rows, y rows, J rows)."""
+    repeated: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+    """Repeated parts, copied from their first occurrence: (y rows, J rows, first y rows, first J rows)."""
+
+
 class Stack(TaskMap):
     """Parts' values concatenated (dim = sum of parts) and Jacobians stacked (dim, nv).
 
@@ -24,11 +38,9 @@ class Stack(TaskMap):
     frame's pose and Jacobian is computed once per call.
     """
 
-    #: (y, J, [(part, y rows, J rows)], [(velocity part, its inner map's J rows, y rows, J rows)],
-    #: [(y rows, J rows, first y rows, first J rows)]): views into the last output buffers of the
-    #: parts evaluated on their own, of velocity parts whose inner map is an earlier part, and of each
-    #: repeated part and its first occurrence.
-    _views: tuple[np.ndarray, np.ndarray, list, list, list] | None = None
+    parts: tuple[TaskMap, ...]
+    """The parts in order, nested stacks flattened."""
+    _views: _Views | None = None  # sliced once per output buffer pair (y, J)
 
     def __init__(self, parts: Iterable[TaskMap]):
         flat: list[TaskMap] = []
@@ -73,30 +85,30 @@ class Stack(TaskMap):
 
     def evaluate(self, cache: FrameCache, y: np.ndarray, J: np.ndarray) -> None:
         views = self._views
-        if views is None or views[0] is not y or views[1] is not J:  # slice once per output buffer
+        if views is None or views.y is not y or views.J is not J:  # slice once per output buffer
             views = self._views = self._slice(y, J)
-        for part, y_part, J_part in views[2]:
+        for part, y_part, J_part in views.own:
             part.evaluate(cache, y_part, J_part)
-        for part, J_map, y_part, J_part in views[3]:
-            part.evaluate_from(J_map, cache, y_part, J_part)
-        for y_part, J_part, y_first, J_first in views[4]:
+        for velocity, J_map, y_part, J_part in views.velocities:
+            velocity.evaluate_from(J_map, cache, y_part, J_part)
+        for y_part, J_part, y_first, J_first in views.repeated:
             y_part[:] = y_first
             J_part[:] = J_first
 
-    def _slice(self, y: np.ndarray, J: np.ndarray) -> tuple:
+    def _slice(self, y: np.ndarray, J: np.ndarray) -> _Views:
         rows = [(y[s], J[s]) for s in self._spans]
         first_rows = {p.spec: rows[i] for i, p in enumerate(self.parts) if self._first[i] == i}
-        own, velocities = [], []
+        views = _Views(y, J, [], [], [])
         for i, p in enumerate(self.parts):
             if self._first[i] != i:
                 continue
-            inner = first_rows.get(p.map.spec) if isinstance(p, Velocity) else None
-            if inner is not None:  # evaluated on its own (a velocity map never is an inner map), first
-                velocities.append((p, inner[1], *rows[i]))
+            if isinstance(p, Velocity) and p.map.spec in first_rows:
+                # the inner map is evaluated on its own (a velocity map never is an inner map), first
+                views.velocities.append((p, first_rows[p.map.spec][1], *rows[i]))
             else:
-                own.append((p, *rows[i]))
-        repeated = [(*rows[i], *rows[f]) for i, f in enumerate(self._first) if f != i]
-        return y, J, own, velocities, repeated
+                views.own.append((p, *rows[i]))
+        views.repeated.extend((*rows[i], *rows[f]) for i, f in enumerate(self._first) if f != i)
+        return views
 
     def difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """a - b, each part's rows by the part's own `difference`; a, b (dim,) or (B, dim).
