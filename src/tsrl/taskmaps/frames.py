@@ -91,7 +91,7 @@ class FrameCache:
 
     def __init__(self, model: mujoco.MjModel, frames: Iterable[Frame]):
         self.model = model
-        self.data: mujoco.MjData | None = None
+        self._data: mujoco.MjData | None = None
         self.qvel = np.zeros(model.nv)
         self._stamp = 0
         self._collision_stamp = -1
@@ -106,9 +106,16 @@ class FrameCache:
             if f.kind == "site" and not np.array_equal(model.site_quat[f.id], [1.0, 0.0, 0.0, 0.0])
         ]
 
+    @property
+    def data(self) -> mujoco.MjData:
+        """The MjData of the last `update`."""
+        if self._data is None:
+            raise RuntimeError("FrameCache.update has not been called yet; it binds the cache to an MjData")
+        return self._data
+
     def _bind(self, data: mujoco.MjData) -> None:
         """Points every frame's pose at `data`'s arrays."""
-        self.data = data
+        self._data = data
         self.qvel = data.qvel
         rotated = {id(state) for state, _, _ in self._site_rotations}
         for f in self._frames:
@@ -122,7 +129,7 @@ class FrameCache:
 
     def update(self, data: mujoco.MjData) -> None:
         """Computes what `data` (after forward kinematics) does not hold: site quaternions, Jacobians."""
-        if data is not self.data:
+        if data is not self._data:
             self._bind(data)
         self._stamp += 1
         model = self.model
