@@ -291,7 +291,16 @@ class DlsSolver:
             return self._clamped(q, q_next, e, J, lam, d, np.frombuffer(unclipped))
         return q_next
 
-    def _clamped(self, q, q_next, e, J, lam, d, unclipped) -> np.ndarray:
+    def _clamped(
+        self,
+        q: np.ndarray,
+        q_next: np.ndarray,
+        e: np.ndarray,
+        J: np.ndarray,
+        lam: float,
+        d: np.ndarray | None,
+        unclipped: np.ndarray,
+    ) -> np.ndarray:
         """The step with the joints that leave their range held at the limit they cross and the task
         (and posture) met by the others: dq_free = DLS(J_free, e - J_held dq_held); repeated while
         another joint leaves its range. q + dq, ||dq|| <= max_step, within the limits."""

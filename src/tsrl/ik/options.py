@@ -97,10 +97,11 @@ class IKOptions:
         set_(self, "max_step", _number("max_step", self.max_step))
         set_(self, "weights", _tuple("weights", self.weights, non_negative=True))
         set_(self, "posture", _tuple("posture", self.posture))
-        if np.ndim(self.posture_gain) == 0:
-            set_(self, "posture_gain", _number("posture_gain", self.posture_gain, strict=False))
+        gain = self.posture_gain
+        if isinstance(gain, tuple) or np.ndim(gain) != 0:  # one gain per joint
+            set_(self, "posture_gain", _tuple("posture_gain", gain, non_negative=True))
         else:
-            set_(self, "posture_gain", _tuple("posture_gain", self.posture_gain, non_negative=True))
+            set_(self, "posture_gain", _number("posture_gain", gain, strict=False))
 
 
 class IKResult(NamedTuple):

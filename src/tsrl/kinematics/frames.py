@@ -61,8 +61,8 @@ def as_slice(indices: ArrayLike) -> slice | np.ndarray:
     return slice(idx[0], idx[-1] + 1) if consecutive else np.array(idx)
 
 
-def _movable(model: mujoco.MjModel) -> list[int]:
-    return [j for j in range(model.njnt) if int(model.jnt_type[j]) in (_HINGE, _SLIDE)]
+def _movable(model: mujoco.MjModel) -> tuple[int, ...]:
+    return tuple(j for j in range(model.njnt) if int(model.jnt_type[j]) in (_HINGE, _SLIDE))
 
 
 def joint_ids(model: mujoco.MjModel, joints: Joints = None) -> tuple[int, ...]:
@@ -78,7 +78,7 @@ def joint_ids(model: mujoco.MjModel, joints: Joints = None) -> tuple[int, ...]:
         ids = _movable(model)
         if not ids:
             raise InvalidConfig("the model has no hinge or slide joints to control")
-        return tuple(ids)
+        return ids
     if isinstance(joints, str):  # a single name would otherwise be split into letters
         raise InvalidConfig(f"joints must be a sequence of joint names; got the string {joints!r}")
     names_ = tuple(joints)
