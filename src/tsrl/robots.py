@@ -63,12 +63,23 @@ class Robot:
     """Controlled hinge or slide joints, base to tip: the order of q, of jointState and of the IK."""
     tcp: str
     """Frame of the tool centre point: a site, else a body (a URDF file has bodies only)."""
-    home: str | None = None
-    """Keyframe of the home (rest) configuration."""
+    home: str | tuple[float, ...] | None = None
+    """Home (rest) configuration: a keyframe's name, or the joints' values [rad or m] in `joints` order
+    (for a model without a keyframe); None: the model's default pose (qpos0)."""
     actuators: tuple[str, ...] = ()
-    """Position servos, one per joint in `joints` order (empty: the model has none)."""
+    """Position servos, one per joint in `joints` order (empty: the model's own servos on the joints if
+    it has them, else tsrl adds them: tsrl.servos)."""
     suction: str | None = None
     """Suction (adhesion) actuator, if the arm has a suction cup."""
+    servo_bandwidth: float | None = None
+    """Bandwidth [Hz] at which the servos tsrl adds are critically damped (None: tsrl.servos'
+    default); only for a model without servos on the joints."""
+    gravity_compensation: bool | None = None
+    """Gravity compensation of the arm's bodies (through the joints' actuators); None: on where tsrl
+    adds the servos, the model as written where it has its own."""
+    drop_equalities: tuple[str, ...] = ()
+    """Equality constraints removed from the model (each by its name, or by a body or joint it
+    connects); one left acting on the controlled joints is an error (it pins the arm)."""
 
     def __post_init__(self) -> None:
         for key in ("joints", "actuators"):
@@ -152,8 +163,13 @@ class Robot:
         """
         controlled_joints(model, self.joints)
         resolve_frame(model, self.tcp)
-        if self.home is not None:
+        if isinstance(self.home, str):
             name_to_id(model, "key", self.home)
+        elif self.home is not None and len(self.home) != len(self.joints):
+            raise InvalidConfig(
+                f"robot {self.name!r}: home has {len(self.home)} values for {len(self.joints)} joints; "
+                "give a keyframe's name or one value per joint"
+            )
         for actuator, joint in zip(self.actuators, self.joints):
             a = name_to_id(model, "actuator", actuator)
             j = name_to_id(model, "joint", joint)
@@ -166,7 +182,9 @@ class Robot:
         return self
 
     def home_q(self, model: mujoco.MjModel) -> np.ndarray:
-        """Positions (n,) of the joints in the home keyframe (the model's qpos0 without one)."""
+        """Positions (n,) of the joints at home: its values, its keyframe's, or the model's qpos0."""
+        if self.home is not None and not isinstance(self.home, str):
+            return np.array(self.home, dtype=np.float64)
         qpos = model.qpos0 if self.home is None else model.key_qpos[name_to_id(model, "key", self.home)]
         return qpos[arm_qpos_indices(model, self.joints)].copy()
 
