@@ -74,7 +74,7 @@ def jacobian_singular_values() -> np.ndarray:
     """Singular values of d(x.x, y.y, z.z)/dq at the UR5e's home (cup down)."""
     env = gym.make(ENV_ID).unwrapped
     data = mujoco.MjData(env.model)
-    env._reset_to_home(data)
+    env.bound_robot.reset_to_home(env.model, data)
     mujoco.mj_fwdPosition(env.model, data)  # frames and the joint axes' motion (cdof) for Jacobians
     value = parse_spec(SCALAR_PRODUCTS, env.model, env.robot.joints)(env.model, data)
     env.close()

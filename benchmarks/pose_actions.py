@@ -54,9 +54,9 @@ def main() -> None:
         met, errors = 0, []
         for seed in range(args.goals):
             goal = env.reset(seed=seed)[0]["desired_goal"]
-            env._reset_to_home(data)
+            env.bound_robot.reset_to_home(env.model, data)
             result = solver.solve(data, targets(name, goal))
-            data.qpos[env._arm_qpos] = result.q
+            data.qpos[env.bound_robot.qpos] = result.q
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
             y = pose(model, data).y

@@ -32,7 +32,7 @@ import numpy as np
 
 from .assets import SCENES, load_model, panda, ur5e
 from .exceptions import InvalidConfig, ModelLoadError, UnknownName
-from .kinematics import arm_qpos_indices, controlled_joints, name_to_id
+from .kinematics import arm_qpos_indices, as_slice, controlled_joints, joint_limits, name_to_id
 from .taskmaps import resolve_frame
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
@@ -187,6 +187,59 @@ class Robot:
             return np.array(self.home, dtype=np.float64)
         qpos = model.qpos0 if self.home is None else model.key_qpos[name_to_id(model, "key", self.home)]
         return qpos[arm_qpos_indices(model, self.joints)].copy()
+
+    def bind(self, model: mujoco.MjModel) -> BoundRobot:
+        """The robot's indices in `model` (validated), as the environment and its samplers use them.
+
+        Raises:
+            InvalidConfig: the robot has no position servos.
+        """
+        self.validate(model)
+        if not self.actuators:
+            raise InvalidConfig(f"robot {self.name!r} has no position servos (actuators); a task needs them")
+        home_q = self.home_q(model)
+        return BoundRobot(
+            robot=self,
+            qpos=as_slice(arm_qpos_indices(model, self.joints)),
+            ctrl=as_slice([name_to_id(model, "actuator", n) for n in self.actuators]),
+            joint_range=joint_limits(model, self.joints),
+            home_key=name_to_id(model, "key", self.home) if self.home is not None else None,
+            suction_ctrl=name_to_id(model, "actuator", self.suction) if self.suction is not None else None,
+            # A redundant arm (more than six joints) keeps its elbow near home through the IK's
+            # null-space posture term.
+            posture=tuple(float(q) for q in home_q) if len(self.joints) > 6 else None,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class BoundRobot:
+    """A robot's indices in one model (`Robot.bind`).
+
+    Attributes:
+        robot: the description; qpos, ctrl: the arm joints' qpos and servos' ctrl indices (slices
+        where contiguous); joint_range: (n, 2) joint limits [rad or m]; home_key: the home keyframe's
+        id, or None (the model's default state); suction_ctrl: the suction actuator's ctrl index, or
+        None; posture: the IK's null-space posture (home) on a redundant arm, else None.
+    """
+
+    robot: Robot
+    qpos: slice | np.ndarray
+    ctrl: slice | np.ndarray
+    joint_range: np.ndarray
+    home_key: int | None
+    suction_ctrl: int | None
+    posture: tuple[float, ...] | None
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        return self.robot.joints
+
+    def reset_to_home(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """The home keyframe (the model's default state where the robot names none), at rest."""
+        if self.home_key is None:
+            mujoco.mj_resetData(model, data)
+        else:
+            mujoco.mj_resetDataKeyframe(model, data, self.home_key)
 
 
 def _is_servo(model: mujoco.MjModel, a: int) -> bool:

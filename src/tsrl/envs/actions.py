@@ -8,13 +8,16 @@ one model: the IK map (parts, then held maps), the target layout, and `ik_target
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from ..exceptions import InvalidConfig
+from ..ik import DlsSolver
 from ..taskmaps import Stack, TaskMap, Velocity, parse_spec
 
 #: Bounds [m] of TCP position targets in the built-in scenes: above the table and within reach.
@@ -100,17 +103,41 @@ ACTION_MODES: dict[str, str] = {
 }
 
 
+def action_mode(spec: ActionSpec) -> str:
+    """The built-in mode (ACTION_PRESETS) `spec` is, with or without its suction dimension; else "task"."""
+    for name, preset in ACTION_PRESETS.items():
+        if dataclasses.replace(preset, suction=spec.suction) == spec:
+            return name
+    return "task"
+
+
+class _Part(NamedTuple):
+    """An action part's layout: its action columns, IK-target rows and scaling."""
+
+    cols: slice
+    rows: slice
+    step: float | None  # relative scaling, or None for absolute
+    center: np.ndarray
+    half_range: np.ndarray
+    bounds: tuple[np.ndarray, np.ndarray] | None  # (low, high) the target is clipped to
+
+
 class ActionMap:
     """An ActionSpec bound to a model: the IK map and how an action sets its target.
 
-    `ik_map` stacks the parts, then the held maps; `ik_target(a, y)` writes the target of the IK
-    map for action a given the IK map's current value y, into one buffer it returns each time.
+    `ik_map` stacks the parts, then the held maps (`held_map`, their values `held_target`);
+    `ik_target(a, y)` writes the target of the IK map for action a given the IK map's current value
+    y, into one buffer it returns each time. `dim` is the action's size (parts, or one per joint for
+    joint actions, plus suction).
     """
 
     def __init__(self, spec: ActionSpec, model: mujoco.MjModel, n_joints: int):
         self.spec = spec
         self.ik_map: Stack | None = None
+        self.held_map: Stack | None = None
+        self.held_target = np.zeros(0)
         self.dim = n_joints + int(spec.suction)
+        self._parts: list[_Part] = []
         if not spec.uses_ik:
             return
         maps = [_one_map(p.map, model) for p in spec.parts] + [_one_map(h.map, model) for h in spec.hold]
@@ -120,10 +147,9 @@ class ActionMap:
             raise InvalidConfig(f"action map {repeated[0]} is given twice; each map may be set or held once")
         self.ik_map = Stack(maps)
         self.target = np.zeros(self.ik_map.dim)
-        # (action columns, target rows, step or None, center, half range, (low, high) or None) per part
-        self._parts: list[tuple[slice, slice, float | None, np.ndarray, np.ndarray, tuple | None]] = []
+        rows_of = list(self.ik_map.slices.values())
         col = 0
-        for part, m, rows in zip(spec.parts, maps, self.ik_map.slices.values()):
+        for part, m, rows in zip(spec.parts, maps, rows_of):
             _check_part(part, m.dim)
             cols = slice(col, col + m.dim)
             col += m.dim
@@ -131,15 +157,18 @@ class ActionMap:
             if part.low or part.high:
                 bounds = (np.array(part.low or [-np.inf] * m.dim), np.array(part.high or [np.inf] * m.dim))
             self._parts.append(
-                (cols, rows, part.step, np.array(part.center), np.array(part.half_range), bounds)
+                _Part(cols, rows, part.step, np.array(part.center), np.array(part.half_range), bounds)
             )
-        held_rows = list(self.ik_map.slices.values())[len(spec.parts) :]
-        for held, m, rows in zip(spec.hold, maps[len(spec.parts) :], held_rows):
+        held_maps = maps[len(spec.parts) :]
+        for held, m, rows in zip(spec.hold, held_maps, rows_of[len(spec.parts) :]):
             if len(held.value) != m.dim or not all(math.isfinite(v) for v in held.value):
                 raise InvalidConfig(
                     f"held value of {m.spec} must be {m.dim} finite numbers; got {list(held.value)}"
                 )
             self.target[rows] = held.value
+        if held_maps:
+            self.held_map = Stack(held_maps)
+            self.held_target = np.concatenate([h.value for h in spec.hold])
         self.dim = col + int(spec.suction)
 
     def ik_target(self, a: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -156,6 +185,18 @@ class ActionMap:
             if bounds is not None:
                 np.minimum(np.maximum(t, bounds[0], out=t), bounds[1], out=t)
         return target
+
+    def check_holds(self, model: mujoco.MjModel, data: mujoco.MjData, joints: tuple[str, ...]) -> None:
+        """Raises InvalidConfig unless the IK meets the held values from the state in `data` (kinematics
+        done; home): catches conflicting held maps (e.g. two axes) and unreachable values."""
+        if self.held_map is None:
+            return
+        result = DlsSolver(model, self.held_map, joints).solve(data, self.held_target)
+        if not result.converged:
+            raise InvalidConfig(
+                f"the IK cannot hold {self.held_map.spec} at {self.held_target.round(3).tolist()} "
+                f"(residual {result.error_norm:.3g} from home): conflicting or unreachable held values"
+            )
 
 
 def _one_map(spec: str, model: mujoco.MjModel) -> TaskMap:

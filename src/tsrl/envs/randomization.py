@@ -9,9 +9,10 @@ import numpy as np
 
 from ..exceptions import InvalidConfig
 from ..ik import DlsSolver, IKOptions
-from ..kinematics import arm_qpos_indices, as_slice, name_to_id
-from ..robots import Robot
+from ..kinematics import name_to_id
+from ..robots import BoundRobot
 from ..taskmaps import parse_spec
+from .goals import Goal, goal_positions
 from .scenes import TARGET_BODY
 from .tasks import PositionSampler, Task
 
@@ -24,19 +25,17 @@ class Randomizer:
     obstacle (with `clear_at_goal`: goal, orientation and obstacle again while no obstacle fits).
     """
 
-    def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
+    def __init__(self, model: mujoco.MjModel, task: Task, robot: BoundRobot, goal: Goal):
         self.model = model
         self.task = task
-        self._target_mocap = int(model.body_mocapid[name_to_id(model, "body", TARGET_BODY)])
-        if self._target_mocap < 0:
-            raise InvalidConfig(f'the scene\'s body {TARGET_BODY!r} must be a mocap body (mocap="true")')
+        self.goal = goal
         self._nominal = (
             np.array(task.goal.orientation.nominal or model.body_quat[name_to_id(model, "body", TARGET_BODY)])
             if task.goal.orientation
             else None
         )
-        self._arm_qpos = as_slice(arm_qpos_indices(model, robot.joints))
-        self._arm_ctrl = as_slice([name_to_id(model, "actuator", n) for n in robot.actuators])
+        self._arm_qpos = robot.qpos
+        self._arm_ctrl = robot.ctrl
         self._n_joints = len(robot.joints)
         self._objects = []
         for obj in task.objects:
@@ -53,7 +52,7 @@ class Randomizer:
             if mocap < 0:
                 raise InvalidConfig(f"obstacle body {o.body!r} must be a mocap body")
             geom = name_to_id(model, "geom", o.geom)
-            self._obstacle = (mocap, geom, name_to_id(model, "site", robot.tcp))
+            self._obstacle = (mocap, geom, name_to_id(model, "site", robot.robot.tcp))
             if o.clear_at_goal:
                 self._at_goal = _RobotAtGoal(model, task, robot)
 
@@ -76,7 +75,8 @@ class Randomizer:
         for _ in range(_GOAL_AND_OBSTACLE_TRIES):
             goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
             quat = self._sample_orientation(rng) if task.goal.orientation is not None else None
-            self.place_target(data, goal, quat)
+            for i, pos in enumerate(goal_positions(goal, task.goal.offsets)):
+                self.goal.place_marker(data, i, pos, quat if i == 0 else None)
             if self._obstacle is None or self._place_obstacle(data, rng, tcp_start, goal):
                 return
             if not task.obstacle.clear_at_goal:
@@ -87,27 +87,33 @@ class Randomizer:
             "goal box or lower goal_clearance or the obstacle's size"
         )
 
-    def place_target(self, data: mujoco.MjData, pos: np.ndarray, quat: np.ndarray | None = None) -> None:
-        """Puts the goal marker at `pos` (3,) and, for pose goals, orientation `quat` (4,)."""
-        data.mocap_pos[self._target_mocap] = pos
-        if quat is not None:
-            data.mocap_quat[self._target_mocap] = quat
-
-    def _sample_goal(self, rng: np.random.Generator, first_object, tcp_start) -> np.ndarray:
+    def _sample_goal(
+        self, rng: np.random.Generator, first_object: np.ndarray | None, tcp_start: np.ndarray | None
+    ) -> np.ndarray:
+        """The first goal part's position (3,): drawn again while too close to the first object's start
+        (`min_distance`) or, with an obstacle, to the TCP's start (at most _GOAL_TRIES draws)."""
         p: PositionSampler = self.task.goal.position
-        while True:
+        rejected_by = ""
+        for _ in range(_GOAL_TRIES):
             goal = _sample_box(rng, p.center, p.half_extent)
             if p.lift_probability > 0:
                 lift = rng.uniform(0.0, p.max_lift) if rng.uniform() < p.lift_probability else 0.0
                 goal[2] = goal[2] + lift
             if first_object is not None and np.linalg.norm(goal - first_object) < p.min_distance:
+                rejected_by = f"goal.position.min_distance = {p.min_distance}"
                 continue
             if (
                 tcp_start is not None
+                and self.task.obstacle is not None
                 and np.linalg.norm(goal - tcp_start) < self.task.obstacle.min_goal_distance
             ):
+                rejected_by = f"obstacle.min_goal_distance = {self.task.obstacle.min_goal_distance}"
                 continue
             return goal
+        raise InvalidConfig(
+            f"{self.task.source or self.task.name}: {rejected_by} m: no goal in {_GOAL_TRIES} draws from the "
+            "goal box is that far from the start; lower it or widen goal.position.half_extent"
+        )
 
     def _sample_orientation(self, rng: np.random.Generator) -> np.ndarray:
         """The nominal orientation turned by a yaw about its z axis, then tilted within the cone."""
@@ -158,6 +164,8 @@ class Randomizer:
         return False
 
 
+#: Draws of a goal position before its distance rules are given up as unmeetable.
+_GOAL_TRIES = 1000
 #: Draws of the obstacle before the last one is kept (each draw checks contacts and the goal's room).
 _OBSTACLE_TRIES = 20
 #: With `clear_at_goal`: draws of the goal (each with up to _OBSTACLE_TRIES obstacles) before giving up.
@@ -174,17 +182,16 @@ class _RobotAtGoal:
     the start configuration to the goal with the action's held maps held (the cup down), in its own
     MjData; solved once per goal, then checked against each obstacle drawn for it."""
 
-    def __init__(self, model: mujoco.MjModel, task: Task, robot: Robot):
-        if task.goal.map != f"position({robot.tcp})":
+    def __init__(self, model: mujoco.MjModel, task: Task, robot: BoundRobot):
+        if task.goal.map != f"position({robot.robot.tcp})":
             raise InvalidConfig(
-                f"obstacle.clear_at_goal needs the goal map position({robot.tcp}) (the IK solves the robot to "
+                f"obstacle.clear_at_goal needs the goal map position({robot.robot.tcp}) (the IK solves the robot to "
                 f"the goal); got {task.goal.map!r}"
             )
         spec = task.action_spec
         maps = ", ".join([task.goal.map, *(h.map for h in spec.hold)])
         self._held = np.concatenate([[], *(h.value for h in spec.hold)])
-        posture = tuple(robot.home_q(model)) if len(robot.joints) > 6 else None
-        options = IKOptions(restarts=0, posture=posture)
+        options = IKOptions(restarts=0, posture=robot.posture)
         self._solver = DlsSolver(model, parse_spec(maps, model, robot.joints), robot.joints, options)
         self._data = mujoco.MjData(model)
 

@@ -67,15 +67,20 @@ class GoalSpec:
     """The goal: what is achieved, and how the desired goal (the `target` mocap body) is sampled.
 
     Attributes:
-        map: the achieved-goal map: "position(f)" or a pose "position(f), quaternion(f)" of one
-            frame f (the TCP, an object); the desired goal is the same map of `target`.
-        position: sampler of the target position.
+        map: the achieved-goal map: "position(f)", a pose "position(f), quaternion(f)" of one
+            frame f (the TCP, an object), or several frames "position(a), position(b)" (e.g. a
+            stack; envs/goals.py); the desired goal is the same map of the markers `target`,
+            `target_b`, ...
+        position: sampler of the first part's target position.
         orientation: sampler of the target orientation (pose goals only).
+        offsets: the later parts' target positions [m] relative to the first's, one per later
+            part (e.g. [[0, 0, 0.04]]: the second box on top of the first).
     """
 
     map: str
     position: PositionSampler
     orientation: OrientationSampler | None = None
+    offsets: tuple[tuple[float, float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -213,6 +218,26 @@ class Task:
     def action_spec(self) -> ActionSpec:
         """The action as an ActionSpec (a built-in mode resolved)."""
         return ACTION_PRESETS[self.action] if isinstance(self.action, str) else self.action
+
+    def with_overrides(
+        self, obs: str | None = None, action: str | None = None, success_radius: float | None = None
+    ) -> Task:
+        """This task with another observation (a preset or spec), a built-in action mode (the task's
+        suction dimension kept) or position tolerance [m]; itself when nothing is given."""
+        overrides: dict[str, Any] = {}
+        if obs is not None:
+            overrides["observation"] = obs
+        if action is not None:
+            if action not in ACTION_PRESETS:
+                raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_PRESETS)}")
+            overrides["action"] = dataclasses.replace(
+                ACTION_PRESETS[action], suction=self.action_spec.suction
+            )
+        if success_radius is not None:
+            if isinstance(success_radius, bool) or not success_radius > 0:
+                raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
+            overrides["success"] = dataclasses.replace(self.success, position=success_radius)
+        return dataclasses.replace(self, **overrides) if overrides else self
 
 
 #: Built-in tasks: name -> TOML file under tsrl/envs/task_files.
