@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import TypeGuard
 
 
 class TsrlError(Exception):
@@ -68,9 +69,25 @@ class NotRelabelable(TsrlError, ValueError):
         )
 
 
+def is_int(value: object) -> TypeGuard[int]:
+    """Whether `value` is an int and not a bool (Python's True is an int; a config's true is not)."""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def is_number(value: object) -> TypeGuard[int | float]:
+    """Whether `value` is an int or a float and not a bool."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def check_int(name: str, value: object, minimum: int) -> None:
+    """Raises InvalidConfig unless `value` is an integer (not a bool) >= `minimum`, naming `name`."""
+    if not is_int(value) or value < minimum:
+        raise InvalidConfig(f"{name} must be an integer >= {minimum}; got {value!r}")
+
+
 def check_positive(name: str, value: float, strict: bool = True) -> None:
     """Raises InvalidConfig unless `value` is a number > 0 (>= 0 with strict=False), naming `name`."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
+    if not is_number(value):
         raise InvalidConfig(f"{name} must be a number; got {value!r}")
     if (strict and not value > 0) or (not strict and not value >= 0):
         raise InvalidConfig(f"{name} must be {'>' if strict else '>='} 0; got {value}")

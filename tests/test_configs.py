@@ -1,0 +1,154 @@
+"""The one typed loader (tsrl.configs): every kind of bad table is one line naming the file and the key,
+for the loader itself and for each file kind (task, robot, run config.json, experiment)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import pytest
+
+from tsrl.configs import load_file, load_table, read_toml
+from tsrl.exceptions import InvalidConfig
+
+
+@dataclass(frozen=True)
+class Inner:
+    center: tuple[float, float, float]
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        if self.count > 9:
+            raise InvalidConfig(f"count must be <= 9; got {self.count}")
+
+
+@dataclass(frozen=True)
+class Outer:
+    name: str
+    inner: Inner
+    mode: Literal["a", "b"] = "a"
+    flag: bool = False
+    scale: float = 1.0
+    sizes: tuple[int, ...] = ()
+    items: tuple[Inner, ...] = ()
+    choice: Inner | str = "none"
+    maybe: float | None = None
+    path: Path | None = None
+    origin: str = field(default="", compare=False)
+
+
+GOOD = {
+    "name": "x",
+    "inner": {"center": [1, 2.5, 3]},
+    "mode": "b",
+    "flag": True,
+    "scale": 2,
+    "sizes": [3, 4],
+    "items": [{"center": [0, 0, 0], "count": 2}],
+    "choice": {"center": [1, 1, 1]},
+    "maybe": None,
+    "path": "models/arm.xml",
+}
+
+
+def test_a_good_table_builds_nested_frozen_dataclasses_with_converted_values():
+    loaded = load_table(Outer, GOOD, extra={"origin": "here"})
+    assert loaded == Outer(
+        name="x",
+        inner=Inner(center=(1.0, 2.5, 3.0)),
+        mode="b",
+        flag=True,
+        scale=2.0,
+        sizes=(3, 4),
+        items=(Inner(center=(0.0, 0.0, 0.0), count=2),),
+        choice=Inner(center=(1.0, 1.0, 1.0)),
+        path=Path("models/arm.xml"),
+    )
+    assert loaded.origin == "here"
+    # ints become floats where a float is declared (equal, and of the declared type)
+    assert type(loaded.scale) is float and all(type(c) is float for c in loaded.inner.center)
+    assert load_table(Outer, GOOD | {"choice": "other", "maybe": 0.5}).choice == "other"
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"colour": "red"}, "unknown key 'colour'; accepted: name, inner, mode, flag, scale, sizes, items"),
+        ({"origin": "file"}, "unknown key 'origin'; accepted:"),  # a field given by `extra`, not the file
+        ({"inner": {"center": [1, 2, 3], "cnt": 2}}, "unknown key 'cnt' in [inner]; accepted: center, count"),
+        ({"inner": {"count": 2}}, "missing key 'center' in [inner]"),
+        ({"inner": 3}, "inner must be a table; got 3"),
+        ({"inner": {"center": [1, 2]}}, "inner.center must have 3 entries; got 2"),
+        ({"inner": {"center": 1.0}}, "inner.center must be a list; got 1.0"),
+        ({"inner": {"center": [1, "2", 3]}}, "inner.center[1] must be a number; got '2'"),
+        ({"inner": {"center": [1, True, 3]}}, "inner.center[1] must be a number; got True"),
+        ({"inner": {"center": [1, float("nan"), 3]}}, "inner.center[1] must be a finite number; got nan"),
+        ({"inner": {"center": [1, 2, 3], "count": True}}, "inner.count must be an integer; got True"),
+        ({"inner": {"center": [1, 2, 3], "count": 2.0}}, "inner.count must be an integer; got 2.0"),
+        ({"inner": {"center": [1, 2, 3], "count": 12}}, "[inner] count must be <= 9; got 12"),
+        (
+            {"items": [{"center": [1, 2, 3]}, {"center": [1, 2]}]},
+            "items[1].center must have 3 entries; got 2",
+        ),
+        ({"items": [{"center": [0, 0, 0], "count": 10}]}, "[items[0]] count must be <= 9; got 10"),
+        ({"sizes": [1, False]}, "sizes[1] must be an integer; got False"),
+        ({"mode": "c"}, "mode = 'c'; accepted: 'a', 'b'"),
+        ({"mode": 1}, "mode = 1; accepted: 'a', 'b'"),
+        ({"flag": 1}, "flag must be true or false; got 1"),
+        ({"name": 5}, "name must be a string; got 5"),
+        ({"scale": "big"}, "scale must be a number; got 'big'"),
+        ({"choice": 3}, "choice must be a table or a string; got 3"),
+        ({"choice": {"center": [1, 2, 3], "x": 1}}, "unknown key 'x' in [choice]"),
+        ({"maybe": "0.5"}, "maybe must be a number; got '0.5'"),
+        ({"path": 3}, "path must be a path (a string); got 3"),
+        ({"name": None}, "name must be a string; got None"),
+    ],
+)
+def test_each_kind_of_bad_value_is_one_line_naming_the_file_and_the_key(change, message):
+    with pytest.raises(InvalidConfig) as err:
+        load_table(Outer, GOOD | change, source="cfg/my.toml", extra={"origin": "here"})
+    text = str(err.value)
+    assert text.startswith(f"cfg/my.toml: {message}"), text
+    assert "\n" not in text
+
+
+def test_missing_keys_come_from_the_fields_not_from_the_constructor():
+    with pytest.raises(InvalidConfig) as err:
+        load_table(Outer, {"mode": "b"}, source="my.toml")
+    assert str(err.value) == "my.toml: missing keys 'name', 'inner'"
+    assert (
+        str(pytest.raises(InvalidConfig, load_table, Outer, [1, 2]).value)
+        == "the file must be a table; got [1, 2]"
+    )
+
+
+def test_a_field_of_a_type_the_loader_does_not_know_is_a_programming_error():
+    @dataclass(frozen=True)
+    class Mapped:
+        weights: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    with pytest.raises(TypeError, match=r"cannot load weights: its type dict\[str, float\]"):
+        load_table(Mapped, {"weights": {"a": 1.0}})
+
+
+def test_files_are_read_as_toml_with_an_optional_section(tmp_path):
+    flat = tmp_path / "flat.toml"
+    flat.write_text('name = "x"\n[inner]\ncenter = [1, 2, 3]\n')
+    nested = tmp_path / "nested.toml"
+    nested.write_text('[outer]\nname = "x"\nmode = "z"\n[outer.inner]\ncenter = [1, 2, 3]\n')
+    assert (
+        load_file(Outer, flat)
+        == load_file(Outer, flat, section="outer")
+        == Outer("x", Inner((1.0, 2.0, 3.0)))
+    )
+    with pytest.raises(InvalidConfig) as err:
+        load_file(Outer, nested, section="outer")
+    assert str(err.value) == f"{nested}: outer.mode = 'z'; accepted: 'a', 'b'"
+    (tmp_path / "broken.toml").write_text("name = [")
+    with pytest.raises(InvalidConfig, match=r"broken.toml: not valid TOML: ") as err:
+        read_toml(tmp_path / "broken.toml")
+    assert "\n" not in str(err.value)
+    with pytest.raises(InvalidConfig, match=r"nope.toml: cannot read it: No such file"):
+        read_toml(tmp_path / "nope.toml")
