@@ -13,7 +13,6 @@ nothing half-stored.
 from __future__ import annotations
 
 import json
-import os
 import pickle
 import random
 import shutil
@@ -30,6 +29,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from stable_baselines3.her import HerReplayBuffer
 
+from ..files import replacing
 from .run_folder import (
     CHECKPOINTS,
     KEEP_CHECKPOINTS,
@@ -69,23 +69,20 @@ def save_checkpoint(
     final = checkpoint_path(run_dir, state.env_steps)
     if (final / STATE).is_file():  # this very state is already saved (e.g. a stop right after resuming)
         return final
-    tmp = root / f".tmp-{final.name}-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    model.save(tmp / MODEL)
-    with open(tmp / REPLAY_BUFFER, "wb") as f:
-        pickle.dump(model.replay_buffer, f, protocol=pickle.HIGHEST_PROTOCOL)
-    if normalizer is not None:
-        with open(tmp / NORMALIZER, "wb") as f:
-            pickle.dump(normalizer, f, protocol=pickle.HIGHEST_PROTOCOL)
-    with open(tmp / RNG, "wb") as f:
-        pickle.dump(_rng_state(model), f, protocol=pickle.HIGHEST_PROTOCOL)
-    (tmp / STATE).write_text(json.dumps(state.__dict__, indent=2) + "\n")  # last: marks it complete
-    shutil.rmtree(final, ignore_errors=True)
-    os.replace(tmp, final)
+    with replacing(final) as tmp:  # a folder without state.json (a damaged one) is replaced
+        tmp.mkdir()
+        model.save(tmp / MODEL)
+        with open(tmp / REPLAY_BUFFER, "wb") as f:
+            pickle.dump(model.replay_buffer, f, protocol=pickle.HIGHEST_PROTOCOL)
+        if normalizer is not None:
+            with open(tmp / NORMALIZER, "wb") as f:
+                pickle.dump(normalizer, f, protocol=pickle.HIGHEST_PROTOCOL)
+        with open(tmp / RNG, "wb") as f:
+            pickle.dump(_rng_state(model), f, protocol=pickle.HIGHEST_PROTOCOL)
+        (tmp / STATE).write_text(json.dumps(state.__dict__, indent=2) + "\n")  # last: marks it complete
     keep = set(checkpoint_dirs(run_dir)[-KEEP_CHECKPOINTS:]) | {final}
-    for old in root.iterdir():
-        if old not in keep and (old.name.startswith("step_") or old.name.startswith(".tmp-")):
+    for old in root.iterdir():  # older checkpoints, and temporaries (".step_...") of killed writers
+        if old not in keep and old.name.lstrip(".").startswith("step_"):
             shutil.rmtree(old, ignore_errors=True)
     return final
 

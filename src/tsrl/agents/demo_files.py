@@ -29,7 +29,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..exceptions import InvalidConfig, TsrlError
+from ..files import replacing
 from .config import TrainConfig
 
 FORMAT = "tsrl-demos"
@@ -137,10 +137,9 @@ def save_demos(demos: Demonstrations, path: Path | str) -> Path:
     if path.suffix != ".npz":
         raise InvalidConfig(f"a demonstration file ends in .npz; got {path}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
     arrays = {name: getattr(demos, name) for name in ARRAYS}
-    np.savez_compressed(tmp, meta=np.array(json.dumps(demos.meta)), **arrays)
-    os.replace(tmp, path)
+    with replacing(path, suffix=".npz") as tmp:
+        np.savez_compressed(tmp, meta=np.array(json.dumps(demos.meta)), **arrays)
     return path
 
 
@@ -237,7 +236,7 @@ def sha256(path: Path | str) -> str:
 def demo_record(cfg: TrainConfig) -> dict[str, Any] | None:
     """What a run folder records about its demonstrations (absolute path, sha256, counts), after
     checking the file against the run's environment; None without demonstrations."""
-    if not cfg.agent.demos.enabled:
+    if not cfg.agent.demos.active:
         return None
     path = Path(cfg.agent.demos.path).resolve()  # type: ignore[arg-type]
     env = gym.make(cfg.gym_id, **cfg.env_kwargs)
@@ -258,7 +257,7 @@ def check_demo_record(run_dir: Path | str, cfg: TrainConfig) -> None:
     """Raises DemoFileError if the run's demonstration file no longer has the recorded sha256
     (checked when a run restarts from scratch; a checkpoint holds its own copy of the demonstrations)."""
     record_path = Path(run_dir) / DEMOS_RECORD
-    if not cfg.agent.demos.enabled or not record_path.is_file():
+    if not cfg.agent.demos.active or not record_path.is_file():
         return
     recorded = json.loads(record_path.read_text())
     now = demo_record(cfg)

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any, Self
 
 from ..exceptions import TsrlError
+from ..files import replacing, write_atomic
 from .config import TrainConfig, from_dict
 
 CONFIG_FILE = "config.json"
@@ -145,20 +146,16 @@ def truncate_progress(run_dir: Path, last_step: int) -> int:
         for r in rows
         if r.get("env_steps", "").isdigit() and int(r["env_steps"]) <= last_step and None not in r.values()
     ]
-    tmp = path.with_suffix(".csv.tmp")
-    with open(tmp, "w", newline="") as f:
+    with replacing(path) as tmp, open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=PROGRESS_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(kept)
-    os.replace(tmp, path)
     return int(kept[-1]["env_steps"]) if kept else -1
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
-    """Writes `data` as JSON to a temporary file renamed over `path`: readers never see half a file."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, path)
+    """Writes `data` as indented JSON to `path` atomically (tsrl.files.write_atomic)."""
+    write_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
 def checkpoint_path(run_dir: Path, env_steps: int) -> Path:

@@ -27,6 +27,7 @@ from ..agents.config import TrainConfig
 from ..agents.run_folder import read_progress
 from ..agents.training import in_main_thread
 from ..exceptions import InvalidConfig
+from ..files import write_atomic
 from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
@@ -49,9 +50,7 @@ def run_experiment(
         raise InvalidConfig(f"--workers must be >= 1; got {workers}")
     exp_dir = Path(out_dir) / exp.name
     exp_dir.mkdir(parents=True, exist_ok=True)
-    tmp = exp_dir / f".{EXPERIMENT_FILE}.tmp"
-    tmp.write_text(json.dumps(exp.to_dict(), indent=2) + "\n")
-    os.replace(tmp, exp_dir / EXPERIMENT_FILE)
+    write_atomic(exp_dir / EXPERIMENT_FILE, json.dumps(exp.to_dict(), indent=2) + "\n")
 
     runs = exp.runs(exp_dir.resolve())
     display = Progress(runs, exp_dir, stream if stream is not None else sys.stderr)
@@ -88,7 +87,7 @@ def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: P
 
     for cfg in todo:
         path = Path(cfg.agent.demos.path or "")
-        if path.is_file():
+        if not cfg.agent.demos.active or path.is_file():  # off: the run never reads the file
             continue
         display.message(f"recording {recipe.episodes} demonstrations for {cfg.env_name}")
         demos = record_demos(cfg.env_id, recipe.episodes, obs=cfg.obs, action=cfg.action, seed=recipe.seed)
