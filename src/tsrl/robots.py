@@ -49,6 +49,8 @@ class UnknownRobot(UnknownName):
 
 
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
+#: The keyframe a model gets where the robot's home is given as joint values (tsrl.robot_model).
+HOME_KEY = "tsrl:home"
 
 
 @dataclass(frozen=True)
@@ -195,15 +197,17 @@ class Robot:
             InvalidConfig: the robot has no position servos.
         """
         self.validate(model)
-        if not self.actuators:
+        actuators = self.actuators or _servos_of(model, self.joints)  # or those tsrl added (tsrl.servos)
+        if not actuators:
             raise InvalidConfig(f"robot {self.name!r} has no position servos (actuators); a task needs them")
         home_q = self.home_q(model)
+        home = self.home if isinstance(self.home, str) else HOME_KEY  # joint values: tsrl's keyframe
         return BoundRobot(
             robot=self,
             qpos=as_slice(arm_qpos_indices(model, self.joints)),
-            ctrl=as_slice([name_to_id(model, "actuator", n) for n in self.actuators]),
+            ctrl=as_slice([name_to_id(model, "actuator", n) for n in actuators]),
             joint_range=joint_limits(model, self.joints),
-            home_key=name_to_id(model, "key", self.home) if self.home is not None else None,
+            home_key=name_to_id(model, "key", home) if self.home is not None else None,
             suction_ctrl=name_to_id(model, "actuator", self.suction) if self.suction is not None else None,
             # A redundant arm (more than six joints) keeps its elbow near home through the IK's
             # null-space posture term.
