@@ -318,7 +318,7 @@ def main() -> None:
         cfg
         for suite in suites
         for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos)
-        if not (args.no_demos_only and cfg.agent.demos.enabled)
+        if not (args.no_demos_only and cfg.agent.demos.active)
     ]
     work = list(
         {(cfg.env_id, cfg.run_name): (cfg, args.out_dir) for cfg in cfgs}.values()
@@ -337,7 +337,7 @@ def main() -> None:
     groups: dict[str, list[Path]] = {}
     for (cfg, _), run_dir in zip(work, done, strict=True):
         label = f"{cfg.env_id} obs={cfg.obs} action={cfg.action} algo={cfg.agent.algo} HER={cfg.agent.her.relabel}"
-        if cfg.agent.demos.enabled:
+        if cfg.agent.demos.active:
             d = cfg.agent.demos
             label += (
                 f" demos={Path(d.path).name} share={d.batch_share} bc={d.bc_weight} q_filter={d.q_filter}"

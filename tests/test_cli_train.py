@@ -139,6 +139,29 @@ def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
     assert steps_column(run_dir) == [(s, s // 50) for s in range(0, stopped_at + 101, 100)]
 
 
+def learning_columns(run_dir: Path) -> list[tuple[str, ...]]:
+    """progress.csv without its wall-clock columns: what the agent learned, row by row."""
+    with open(run_dir / "progress.csv", newline="") as f:
+        return [tuple(v for k, v in r.items() if not k.endswith("time_s")) for r in csv.DictReader(f)]
+
+
+@pytest.mark.parametrize("off", [["--demos-bc-weight", "0"], ["--demos-batch-share", "0"]])
+def test_demonstrations_off_train_the_run_without_them(off, trained_run, tmp_path):
+    demos = tmp_path / "reach.npz"
+    recorded = run_tsrl(
+        "demos", "record", "--env", "tsrl/UR5eReach-v0", "--episodes", "2", "--out", str(demos)
+    )
+    assert recorded.returncode == 0, recorded.stderr
+    out = tmp_path / "runs"
+    result = run_tsrl("train", "--out-dir", str(out), *TINY, "--demos", str(demos), *off)
+    assert result.returncode == 0, result.stderr
+    (run_dir,) = out.iterdir()
+    assert run_dir.name == RUN_NAME  # not ...__demos
+    assert not (run_dir / "demos.json").exists()
+    assert json.loads((run_dir / "config.json").read_text())["agent"]["demos"]["path"] == str(demos)
+    assert learning_columns(run_dir) == learning_columns(trained_run)  # the run without demonstrations
+
+
 @pytest.mark.parametrize(
     ("args", "expected"),
     [

@@ -90,7 +90,7 @@ class DemoConfig:
     """Demonstration file (.npz, written by `tsrl demos record`); None: no demonstrations."""
     batch_share: Annotated[float, arg(name="demos-batch-share")] = 0.125
     """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay
-    (Nair et al.: 128 of 1024)."""
+    (Nair et al.: 128 of 1024); 0: demonstrations off."""
     bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
     """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
     next to the actor's -mean Q; 0: demonstrations off (no demonstration rows, no BC loss: the agent
@@ -109,9 +109,12 @@ class DemoConfig:
         check_positive("demos bc_weight", self.bc_weight, strict=False)
 
     @property
-    def enabled(self) -> bool:
-        """Whether the run uses a demonstration file."""
-        return self.path is not None
+    def active(self) -> bool:
+        """Whether demonstrations take part in training: a file, a batch share > 0 and a BC weight > 0.
+
+        Either at 0 turns them off: the file is not read, the run is the one without demonstrations
+        (its name, its agent, its run folder). Every "are demonstrations on?" asks this."""
+        return self.path is not None and self.batch_share > 0 and self.bc_weight > 0
 
 
 @dataclass(frozen=True)
@@ -286,10 +289,11 @@ class TrainConfig:
         """`<env>__<obs>__<action>__<algo>__s<seed>`, e.g. tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0.
 
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
-        with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations `__demos`.
+        with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
+        (DemoConfig.active) `__demos`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
-        suffix += "__demos" if self.agent.demos.enabled else ""
+        suffix += "__demos" if self.agent.demos.active else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

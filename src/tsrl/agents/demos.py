@@ -132,13 +132,12 @@ def attach_demos(
 ) -> Demonstrations:
     """Loads `cfg.path` (checked against the model's env), fills the demonstration buffer, lets the
     normaliser see the demonstration states (as OpenAI baselines' DDPG + demonstrations does) and
-    attaches the BC loss. For a new model; a resumed one has its buffer and statistics already."""
-    assert cfg.path is not None and model.env is not None
+    attaches the BC loss. For a new model with demonstrations on (`cfg.active`); a resumed one has its
+    buffer and statistics already."""
+    assert cfg.active and cfg.path is not None and model.env is not None
     demos = load_demos(cfg.path, DemoSpec.of(_first_env(model.env)))
     buffer = model.replay_buffer
     assert isinstance(buffer, DemoReplayBuffer)
-    if cfg.batch_share == 0 or cfg.bc_weight == 0:  # demonstrations off: today's agent, bit for bit
-        return demos
     buffer.set_demos(demos)
     if normalizer is not None and demos.n_episodes:
         for key in OBS_KEYS:
@@ -195,10 +194,9 @@ class BCLoss:
         self.model.logger.record("train/q_filter_pass", mask.float().mean().item())
 
 
-def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandle | None:
-    """Registers BCLoss on the actor's optimizer (after creating or loading a model); None if
-    bc_weight is 0."""
-    if cfg.bc_weight == 0:
-        return None
+def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandle:
+    """Registers BCLoss on the actor's optimizer (after creating or loading a model with
+    demonstrations on, `cfg.active`)."""
+    assert cfg.active
     optimizer = model.actor.optimizer  # type: ignore[attr-defined]
     return optimizer.register_step_pre_hook(BCLoss(model, cfg.bc_weight, cfg.q_filter))

@@ -113,7 +113,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo in ("ddpg", "td3") and a.action_noise > 0:
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
-    if a.demos.enabled:  # demonstration buffer beside the replay, Q-filtered BC loss (agents/demos.py)
+    if a.demos.active:  # demonstration buffer beside the replay, Q-filtered BC loss (agents/demos.py)
         from .demos import DemoReplayBuffer, attach_demos
 
         kwargs["replay_buffer_class"] = DemoReplayBuffer

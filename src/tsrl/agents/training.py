@@ -152,7 +152,7 @@ class _Session:
             episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
             model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
             model.buffer_size = model.replay_buffer.buffer_size
-            if cfg.agent.demos.enabled:  # the demonstrations came back in the replay buffer
+            if cfg.agent.demos.active:  # the demonstrations came back in the replay buffer
                 attach_bc_loss(model, cfg.agent.demos)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))

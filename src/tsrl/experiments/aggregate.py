@@ -96,8 +96,9 @@ def variants(cfgs: list[TrainConfig]) -> list[str]:
     """Per config, the settings (beyond env, obs, action, algo, seed) that differ among `cfgs`, as
     `field=value, ...`; empty when all share them (as the runs of one experiment do)."""
     flat = [{k: v for k, v in _flatten(c.to_dict()).items() if k not in _NOT_VARIANT} for c in cfgs]
-    for f in flat:  # an experiment's [demos] records one file per (env, obs, action): on or off is
-        f["agent.demos"] = f.pop("agent.demos.path") is not None  # the variant (sha256: demos.json)
+    for f, cfg in zip(flat, cfgs, strict=True):  # an experiment's [demos] records one file per
+        del f["agent.demos.path"]  # (env, obs, action): on or off is the variant (sha256: demos.json)
+        f["agent.demos"] = cfg.agent.demos.active
     fields = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
     return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
 
