@@ -152,3 +152,78 @@ def test_files_are_read_as_toml_with_an_optional_section(tmp_path):
     assert "\n" not in str(err.value)
     with pytest.raises(InvalidConfig, match=r"nope.toml: cannot read it: No such file"):
         read_toml(tmp_path / "nope.toml")
+
+
+# -- each file kind ----------------------------------------------------------------------------------
+def _one_line_naming(err: pytest.ExceptionInfo[InvalidConfig], path: Path, message: str) -> None:
+    text = str(err.value)
+    assert text.startswith(f"{path}: {message}"), text
+    assert "\n" not in text
+
+
+TASK = """
+name = "MyReach"
+episode_steps = 20
+
+[goal]
+map = "position(tcp)"
+
+[goal.position]
+center = [-0.49, -0.13, 0.42]
+half_extent = [0.1, 0.1, 0.05]
+
+[success]
+reward = "-1/0"
+"""
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (
+            "episode_steps = 20",
+            'episode_steps = 20\ncolour = "red"',
+            "unknown key 'colour'; accepted: name, goal",
+        ),
+        ("[goal.position]\n", "[goal.position]\nradius = 1\n", "unknown key 'radius' in [goal.position]"),
+        ('name = "MyReach"', "", "missing key 'name'"),
+        ("center = [-0.49, -0.13, 0.42]", "", "missing key 'center' in [goal.position]"),
+        ("episode_steps = 20", 'episode_steps = "20"', "episode_steps must be an integer; got '20'"),
+        ("episode_steps = 20", "episode_steps = true", "episode_steps must be an integer; got True"),
+        ("[0.1, 0.1, 0.05]", "[0.1, 0.1]", "goal.position.half_extent must have 3 entries; got 2"),
+        (
+            "[0.1, 0.1, 0.05]",
+            "[0.1, false, 0.05]",
+            "goal.position.half_extent[1] must be a number; got False",
+        ),
+        ('reward = "-1/0"', 'reward = "1/2"', "success.reward = '1/2'; accepted: '0/1', '-1/0'"),
+        ("episode_steps = 20", 'episode_steps = 20\nobstacle = "box"', "obstacle must be a table; got 'box'"),
+        ("episode_steps = 20", "episode_steps = 20\nobjects = 3", "objects must be a list; got 3"),
+        ("episode_steps = 20", "action = 3", "action must be a table or a string; got 3"),
+        (
+            "[success]\n",
+            '[[success.penalties]]\nmap = "accumulatedCollisions"\nabove = "0"\n[success]\n',
+            None,
+        ),
+    ],
+)
+def test_task_files(tmp_path, old, new, message):
+    from tsrl.envs import load_task
+
+    path = tmp_path / "my_task.toml"
+    assert TASK.count(old) == 1
+    path.write_text(TASK.replace(old, new))
+    with pytest.raises(InvalidConfig) as err:
+        load_task(path)
+    _one_line_naming(err, path, message or "success.penalties[0].above must be a number; got '0'")
+
+
+def test_a_task_whose_scene_file_is_missing_names_the_file_and_the_key(tmp_path):
+    from tsrl.envs import load_task
+    from tsrl.envs.scenes import load_scene
+
+    path = tmp_path / "my_task.toml"
+    path.write_text(TASK.replace('name = "MyReach"', 'name = "MyReach"\nscene = "models/nope.xml"'))
+    with pytest.raises(InvalidConfig) as err:
+        load_scene(load_task(path))
+    _one_line_naming(err, path, "scene = 'models/nope.xml': neither a built-in scene (ur5e, reach,")

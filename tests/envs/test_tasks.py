@@ -244,21 +244,27 @@ def _task_file(tmp_path, text: str) -> str:
         ),
         (lambda t: t.replace('map = "position(tcp)"', 'map = "velocity(position(tcp))"'), r"not a goal map"),
         (lambda t: t.replace('scene = "reach"', 'scene = "missing.xml"'), r"neither a built-in scene"),
-        (lambda t: t[: t.index("[goal]")], r"missing key .goal. in the task"),
+        (lambda t: t[: t.index("[goal]")], r"missing key 'goal'$"),
+        (
+            lambda t: t.replace("[0.1, 0.1, 0.05]", "[0.1, 0.1]"),
+            r"goal.position.half_extent must have 3 entries",
+        ),
     ],
 )
 def test_bad_task_files_fail_with_one_line_naming_the_file_and_key(tmp_path, edit, message):
     path = _task_file(tmp_path, edit(REACH_TOML))
     with pytest.raises(InvalidConfig, match=message) as err:
         gym.make(TASK_ENV_ID, task=path)
-    assert "\n" not in str(err.value)
+    assert str(err.value).startswith(f"{path}: ") and "\n" not in str(err.value)
 
 
 def test_unknown_maps_frames_and_unloadable_models_are_named(tmp_path):
     with pytest.raises(tsrl.TsrlError, match=r"unknown task map 'postion'"):
         gym.make(TASK_ENV_ID, task=_task_file(tmp_path, REACH_TOML.replace('"fs1"', '"postion(tcp)"')))
-    with pytest.raises(tsrl.TsrlError, match=r"unknown frame 'gripper'"):
+    with pytest.raises(tsrl.TsrlError, match=r"unknown frame 'gripper'") as err:
         gym.make(TASK_ENV_ID, task=_task_file(tmp_path, REACH_TOML.replace('"fs1"', '"position(gripper)"')))
+    frames = str(err.value).split("the model's frames: ")[1].split(", ")
+    assert "target" in frames and len(frames) == len(set(frames))  # `target` is a site and a body: once
     (tmp_path / "broken.xml").write_text("<mujoco><worldbody><geom type='sphere'/></worldbody>")
     with pytest.raises(ModelLoadError, match=r"broken.xml"):
         gym.make(TASK_ENV_ID, task=_task_file(tmp_path, REACH_TOML.replace('"reach"', '"broken.xml"')))

@@ -25,10 +25,11 @@ def load_scene(task: Task) -> mujoco.MjModel:
     path = Path(task.scene)
     if not path.is_absolute() and task.source is not None:
         path = task.source.parent / path
+    in_file = f"{task.source}: " if task.source is not None else ""
     if path.suffix.lower() not in MODEL_SUFFIXES or not path.is_file():
         raise InvalidConfig(
-            f"scene = {task.scene!r}: neither a built-in scene ({', '.join(SCENES)}) nor an existing "
-            f"model file ({', '.join(MODEL_SUFFIXES)})"
+            f"{in_file}scene = {task.scene!r}: neither a built-in scene ({', '.join(SCENES)}) nor an "
+            f"existing model file ({', '.join(MODEL_SUFFIXES)})"
         )
     try:
         spec = mujoco.MjSpec.from_file(str(path))
@@ -43,4 +44,4 @@ def load_scene(task: Task) -> mujoco.MjModel:
         return spec.compile()
     except ValueError as err:
         reason = " ".join(str(err).split())
-        raise ModelLoadError(f"scene = {str(path)!r}: MuJoCo could not load it: {reason}") from None
+        raise ModelLoadError(f"{in_file}scene = {str(path)!r}: MuJoCo could not load it: {reason}") from None

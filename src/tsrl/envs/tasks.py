@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
-import types
-import typing
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
+from ..configs import load_file
 from ..exceptions import InvalidConfig, check_positive
 from ..robots import ROBOTS
 from .actions import ACTION_PRESETS, WORKSPACE_HIGH, WORKSPACE_LOW, ActionPart, ActionSpec, HeldPart
@@ -276,80 +274,7 @@ def load_task(task: Task | str | Path) -> Task:
         raise InvalidConfig(
             f"no task file {str(path)!r}; give a TOML file or a built-in task: {', '.join(BUILTIN_TASKS)}"
         )
-    try:
-        table = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        raise InvalidConfig(f"{path}: not a valid TOML file: {err}") from None
-    try:
-        return _build(Task, table, "", extra={"source": path})
-    except InvalidConfig as err:
-        raise InvalidConfig(f"{path}: {err}") from None
-
-
-# -- TOML -> dataclasses ----------------------------------------------------------------------------
-def _build(cls: type, table: Any, where: str, extra: dict[str, Any] | None = None) -> Any:
-    """An instance of dataclass `cls` from a TOML table, with typed, named errors."""
-    if cls is ActionSpec and isinstance(table, str):
-        return table
-    if not isinstance(table, dict):
-        raise InvalidConfig(f"[{where}] must be a table; got {table!r}")
-    hints = typing.get_type_hints(cls)
-    fields = {f.name for f in dataclasses.fields(cls) if f.name != "source"}
-    unknown = sorted(set(table) - fields)
-    if unknown:
-        raise InvalidConfig(
-            f"unknown key {unknown[0]!r} in {_place(where)}; accepted: {', '.join(sorted(fields))}"
-        )
-    kwargs = {
-        key: _value(hints[key], value, f"{where}.{key}" if where else key) for key, value in table.items()
-    }
-    try:
-        return cls(**kwargs, **(extra or {}))
-    except TypeError as err:  # a required key is missing
-        missing = str(err).split("argument")[-1].strip(": ")
-        raise InvalidConfig(f"missing key {missing} in {_place(where)}") from None
-
-
-def _place(where: str) -> str:
-    return f"[{where}]" if where else "the task"
-
-
-def _value(hint: Any, value: Any, key: str) -> Any:
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        options = [a for a in args if a is not type(None)]
-        if str in options and isinstance(value, str):
-            return value
-        return _value(next(a for a in options if a is not str), value, key)
-    if origin is Literal:
-        if value not in args:
-            raise InvalidConfig(f"{key} = {value!r}; accepted: {', '.join(map(repr, args))}")
-        return value
-    if origin is tuple:
-        if not isinstance(value, list):
-            raise InvalidConfig(f"{key} must be a list; got {value!r}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_value(args[0], v, f"{key}[{i}]") for i, v in enumerate(value))
-        if len(value) != len(args):
-            raise InvalidConfig(f"{key} must have {len(args)} entries; got {len(value)}")
-        return tuple(_value(a, v, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
-    if dataclasses.is_dataclass(hint):
-        return _build(hint, value, key)
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise InvalidConfig(f"{key} must be a number; got {value!r}")
-        return float(value)
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise InvalidConfig(f"{key} must be an integer; got {value!r}")
-        return value
-    if hint is bool or hint is str:
-        if not isinstance(value, hint):
-            raise InvalidConfig(f"{key} must be a {hint.__name__}; got {value!r}")
-        return value
-    raise InvalidConfig(f"{key}: unsupported value {value!r}")  # pragma: no cover - every hint is above
+    return load_file(Task, path, extra={"source": path})
 
 
 # -- validation without a model ----------------------------------------------------------------------

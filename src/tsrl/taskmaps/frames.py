@@ -38,7 +38,7 @@ def resolve_frame(model: mujoco.MjModel, name: str) -> Frame:
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
     if bid >= 0:
         return Frame(name, "body", bid, bid, model.nsite + bid)
-    raise UnknownName("frame", name, names(model, "site") + names(model, "body"))
+    raise UnknownName("frame", name, {*names(model, "site"), *names(model, "body")})  # `target` is both
 
 
 def resolve_geom(model: mujoco.MjModel, name: str) -> int:
