@@ -35,6 +35,7 @@ from tsrl.agents.demo_files import (
 from tsrl.agents.demonstrators import demo_seeds, record_demos
 from tsrl.agents.demos import DemoReplayBuffer, q_filtered_bc_loss
 from tsrl.agents.run_folder import latest_checkpoint
+from tsrl.envs.keys import OBS_KEYS
 
 REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"
 
@@ -64,7 +65,7 @@ def test_recorded_pick_and_place_demos_replay_exactly_and_succeed(pick_demos, tm
     for i in range(d.n_episodes):
         obs, _ = env.reset(seed=int(d.seeds[i]))
         for t in range(d.episode_steps):
-            for key in ("observation", "achieved_goal", "desired_goal"):
+            for key in OBS_KEYS:
                 np.testing.assert_array_equal(obs[key], getattr(d, key)[i, t])
             obs, reward, *_ = env.step(d.actions[i, t])
             assert reward == d.rewards[i, t]
@@ -246,8 +247,8 @@ def test_demo_rows_are_relabelled_like_env_relabel(pick_demos):
         next_obs = {k: v[i].numpy() for k, v in demo.next_observations.items()}
         row = _stored_row(flat_obs["observation"], flat_actions, obs, demo.actions[i].numpy(), env)
         e, t = divmod(row, d.episode_steps)
-        stored = {k: getattr(d, k)[e, t] for k in ("observation", "achieved_goal", "desired_goal")}
-        stored_next = {k: getattr(d, k)[e, t + 1] for k in ("observation", "achieved_goal", "desired_goal")}
+        stored = {k: getattr(d, k)[e, t] for k in OBS_KEYS}
+        stored_next = {k: getattr(d, k)[e, t + 1] for k in OBS_KEYS}
         goal = obs["desired_goal"]
         if i >= n_real:
             expected, expected_next = env.relabel(stored, goal), env.relabel(stored_next, goal)

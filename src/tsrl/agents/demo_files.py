@@ -37,6 +37,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig, TsrlError
 from ..files import replacing
 from .config import TrainConfig
@@ -45,15 +46,12 @@ FORMAT = "tsrl-demos"
 VERSION = 1
 #: Arrays of a demonstration file besides `meta`.
 ARRAYS: tuple[str, ...] = (
-    "observation",
-    "achieved_goal",
-    "desired_goal",
+    *OBS_KEYS,
     "actions",
     "rewards",
     "is_success",
     "seeds",
 )
-OBS_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 #: A run folder's record of the demonstrations it trained with (path, sha256, counts).
 DEMOS_RECORD = "demos.json"
 

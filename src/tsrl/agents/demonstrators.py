@@ -11,9 +11,10 @@ import gymnasium as gym
 import numpy as np
 
 from ..envs.actions import ACTION_PRESETS
+from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .config import TrainConfig
-from .demo_files import ARRAYS, FORMAT, OBS_KEYS, VERSION, Demonstrations, DemoSpec
+from .demo_files import ARRAYS, FORMAT, VERSION, Demonstrations, DemoSpec
 
 #: Demonstration episode seeds are drawn from a stream of their own (apart from training and evaluation).
 _DEMO_STREAM = 0xDE30

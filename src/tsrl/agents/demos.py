@@ -30,8 +30,9 @@ from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from torch.utils.hooks import RemovableHandle
 
+from ..envs.keys import OBS_KEYS
 from .config import DemoConfig
-from .demo_files import OBS_KEYS, Demonstrations, DemoSpec, load_demos
+from .demo_files import Demonstrations, DemoSpec, load_demos
 from .her import FeatureHerReplayBuffer
 
 

@@ -19,6 +19,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.torch_layers import CombinedExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
+from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .config import ALGOS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
@@ -27,8 +28,6 @@ from .her import FeatureHerReplayBuffer
 ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
     name: getattr(stable_baselines3, name.upper()) for name in ALGOS
 }
-#: Keys normalised by VecNormalize (all of a goal environment's observation dict).
-NORM_KEYS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
 
 
 class PolicyInputs(CombinedExtractor):
@@ -67,7 +66,7 @@ def make_vec_env(cfg: TrainConfig) -> VecEnv:
             venv,
             norm_obs=True,
             norm_reward=False,
-            norm_obs_keys=list(NORM_KEYS),
+            norm_obs_keys=list(OBS_KEYS),  # all of the dict
             clip_obs=cfg.agent.clip_obs,
             gamma=cfg.agent.gamma,
         )
