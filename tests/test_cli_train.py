@@ -101,31 +101,38 @@ def test_render_writes_a_video(trained_run, tmp_path):
 
 
 def test_a_live_run_refuses_a_second_trainer_then_sigkill_and_resume_continue_counters(tmp_path):
-    proc = spawn("train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "2000")
+    # A budget the trainer cannot reach during the test (a small buffer: checkpoints stay small).
+    proc = spawn(
+        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "1000000", "--buffer-size", "2000"
+    )
     run_dir = tmp_path / RUN_NAME
     wait_for(lambda: any(s >= 200 for s in checkpoint_steps(run_dir)), proc)
-    refused = run_tsrl("train", "--resume", str(run_dir))  # while the first one trains it
+    proc.send_signal(signal.SIGSTOP)  # alive and holding the lock, but frozen wherever it had got to
+    refused = run_tsrl("train", "--resume", str(run_dir))
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
     assert f"being trained by process {proc.pid}" in refused.stderr
     proc.send_signal(signal.SIGKILL)
     proc.communicate()
-    killed_at = max(checkpoint_steps(run_dir))
     assert (run_dir / "train.lock").read_text().strip() == str(proc.pid)  # left behind by the killed one
-    result = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", "500")
+    # The budget comes from the folder: 300 env steps past the newest checkpoint, however far it got.
+    killed_at = max(checkpoint_steps(run_dir))
+    assert killed_at >= 200 and killed_at % 100 == 0
+    budget = killed_at + 300
+    result = run_tsrl("train", "--resume", str(run_dir), "--total-timesteps", str(budget))
     assert result.returncode == 0, result.stderr
     assert not (run_dir / "train.lock").exists()
-    assert steps_column(run_dir) == [(s, s // 50) for s in range(0, 501, 100)]  # each row once, none lost
-    assert checkpoint_steps(run_dir) == [400, 500]
-    state = json.loads((run_dir / "checkpoints" / "step_0000000500" / "state.json").read_text())
-    assert (state["env_steps"], state["episodes"]) == (500, 10)
-    assert killed_at >= 200
-    assert json.loads((run_dir / "config.json").read_text())["total_timesteps"] == 500
+    assert steps_column(run_dir) == [(s, s // 50) for s in range(0, budget + 1, 100)]  # each row once
+    assert checkpoint_steps(run_dir) == [budget - 100, budget]
+    state = json.loads((run_dir / "checkpoints" / f"step_{budget:010d}" / "state.json").read_text())
+    assert (state["env_steps"], state["episodes"]) == (budget, budget // 50)
+    assert json.loads((run_dir / "config.json").read_text())["total_timesteps"] == budget
 
 
 def test_sigterm_saves_a_checkpoint_then_resume_finishes(tmp_path):
-    proc = spawn(
-        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "2000", "--checkpoint-freq", "5000"
-    )
+    proc = spawn(  # a budget it cannot finish before the signal, and no periodic checkpoint
+        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "1000000", "--buffer-size", "2000",
+        "--checkpoint-freq", "1000000",
+    )  # fmt: skip
     run_dir = tmp_path / RUN_NAME
     wait_for(lambda: (run_dir / "progress.csv").is_file() and len(steps_column(run_dir)) >= 2, proc)
     proc.send_signal(signal.SIGTERM)
