@@ -227,3 +227,50 @@ def test_a_task_whose_scene_file_is_missing_names_the_file_and_the_key(tmp_path)
     with pytest.raises(InvalidConfig) as err:
         load_scene(load_task(path))
     _one_line_naming(err, path, "scene = 'models/nope.xml': neither a built-in scene (ur5e, reach,")
+
+
+ROBOT = """
+name = "arm"
+model = "ur5e"
+joints = ["shoulder_pan", "shoulder_lift"]
+tcp = "tcp"
+actuators = ["shoulder_pan", "shoulder_lift"]
+"""
+
+
+@pytest.mark.parametrize("section", [False, True])
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('tcp = "tcp"', 'tpc = "tcp"', "unknown key 'tpc'{in_robot}; accepted: name, model, joints, tcp, home"),
+        ('tcp = "tcp"', "", "missing key 'tcp'{in_robot}"),
+        ('tcp = "tcp"', "tcp = 3", "{robot}tcp must be a string; got 3"),
+        ('tcp = "tcp"', 'tcp = "tcp"\nservo_bandwidth = "fast"', "{robot}servo_bandwidth must be a number; got 'fast'"),
+        ('tcp = "tcp"', 'tcp = "tcp"\ngravity_compensation = 1', "{robot}gravity_compensation must be true or false"),
+        ('tcp = "tcp"', 'tcp = "tcp"\nhome = true', "{robot}home must be a string or a list; got True"),
+        ('tcp = "tcp"', 'tcp = "tcp"\nhome = [0.1, "up"]', "{robot}home[1] must be a number; got 'up'"),
+        ('joints = ["shoulder_pan", "shoulder_lift"]', 'joints = "shoulder_pan"', "{robot}joints must be a list"),
+        ('actuators = ["shoulder_pan", "shoulder_lift"]', 'actuators = ["shoulder_pan"]',
+         "{table}robot 'arm': 1 actuators for 2 joints"),
+    ],
+)  # fmt: skip
+def test_robot_files(tmp_path, section, old, new, message):
+    from tsrl.robots import load_robot
+
+    path = tmp_path / "arm.toml"
+    assert ROBOT.count(old) == 1
+    text = ROBOT.replace(old, new)
+    path.write_text("[robot]\n" + text if section else text)
+    with pytest.raises(InvalidConfig) as err:
+        load_robot(path)
+    where = {"in_robot": " in [robot]", "robot": "robot.", "table": "[robot] "} if section else {}
+    _one_line_naming(err, path, message.format_map({"in_robot": "", "robot": "", "table": ""} | where))
+
+
+def test_a_robot_file_loads_with_its_model_relative_to_it(tmp_path):
+    from tsrl.robots import load_robot
+
+    (tmp_path / "arm.toml").write_text(ROBOT.replace('"ur5e"', '"arm.xml"') + "home = [0, 1.5]\n")
+    robot = load_robot(tmp_path / "arm.toml")
+    assert robot.model == str(tmp_path / "arm.xml") and robot.home == (0.0, 1.5)
+    assert robot.joints == ("shoulder_pan", "shoulder_lift") and robot.actuators == robot.joints

@@ -21,16 +21,16 @@ or from a few lines of TOML (`load_robot("arm3.toml")`; paths are relative to th
 
 from __future__ import annotations
 
-import tomllib
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, fields
+import dataclasses
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import mujoco
 import numpy as np
 
 from .assets import SCENES, load_model, panda, ur5e
+from .configs import load_file
 from .exceptions import InvalidConfig, ModelLoadError, UnknownName
 from .kinematics import arm_qpos_indices, as_slice, controlled_joints, joint_limits, name_to_id
 from .taskmaps import resolve_frame
@@ -84,11 +84,6 @@ class Robot:
     connects); one left acting on the controlled joints is an error (it pins the arm)."""
 
     def __post_init__(self) -> None:
-        for key in ("joints", "actuators"):
-            value = getattr(self, key)
-            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
-                raise InvalidConfig(f"robot {self.name!r}: {key} must be a sequence of names; got {value!r}")
-            object.__setattr__(self, key, tuple(value))
         if self.actuators and len(self.actuators) != len(self.joints):
             raise InvalidConfig(
                 f"robot {self.name!r}: {len(self.actuators)} actuators for {len(self.joints)} joints; "
@@ -119,24 +114,6 @@ class Robot:
             actuators = _servos_of(model, joints)
         robot = cls(name, source, tuple(joints), tcp, home, tuple(actuators), suction)
         return robot.validate(model)
-
-    @classmethod
-    def from_dict(cls, spec: Mapping[str, Any], base: Path | None = None) -> Robot:
-        """A description from a mapping (a TOML table); a relative `model` path is taken from `base`."""
-        known = [f.name for f in fields(cls)]
-        unknown = sorted(set(spec) - set(known))
-        if unknown:
-            raise InvalidConfig(f"unknown robot keys {', '.join(unknown)}; accepted: {', '.join(known)}")
-        missing = [k for k in ("name", "model", "joints", "tcp") if k not in spec]
-        if missing:
-            raise InvalidConfig(f"a robot needs {', '.join(missing)} (keys: {', '.join(known)})")
-        values = dict(spec)
-        model = str(values["model"])
-        if base is not None and model not in SCENES and not Path(model).is_absolute():
-            values["model"] = str(base / model)
-        values["joints"] = tuple(values["joints"])
-        values["actuators"] = tuple(values.get("actuators", ()))
-        return cls(**values)
 
     def load_model(self) -> mujoco.MjModel:
         """Compiles `model` (built-in scene, MJCF or URDF file) and validates the names against it."""
@@ -300,7 +277,8 @@ def load_robot(robot: str | Path | Robot) -> Robot:
     Raises:
         UnknownRobot: neither a built-in name nor an existing .toml file (the message lists the
             built-in robots); an `UnknownName`.
-        InvalidConfig: a TOML file with unknown or missing keys.
+        InvalidConfig: a file with an unknown or missing key or a value of the wrong type (one line
+            naming the file and the key; tsrl.configs). Its keys may sit under a `[robot]` table.
     """
     if isinstance(robot, Robot):
         return robot
@@ -309,9 +287,7 @@ def load_robot(robot: str | Path | Robot) -> Robot:
     path = Path(robot)
     if path.suffix.lower() != ".toml" or not path.is_file():
         raise UnknownRobot(str(robot), ROBOTS)
-    with path.open("rb") as f:
-        try:
-            spec = tomllib.load(f)
-        except tomllib.TOMLDecodeError as err:
-            raise InvalidConfig(f"robot file {str(path)!r}: {err}") from None
-    return Robot.from_dict(spec.get("robot", spec), base=path.parent)
+    loaded = load_file(Robot, path, section="robot")
+    if loaded.model in SCENES or Path(loaded.model).is_absolute():
+        return loaded
+    return dataclasses.replace(loaded, model=str(path.parent / loaded.model))  # relative to the file
