@@ -20,6 +20,35 @@ def test_demo_writes_png_files(tmp_path):
     assert str(pngs[0]) in result.stdout
 
 
+ARM = """<mujoco>
+  <worldbody>
+    <light pos="0 0 3"/>
+    <geom type="plane" size="2 2 0.1"/>
+    <body name="link" pos="0 0 0.2">
+      <joint name="j0" type="hinge" axis="0 0 1" range="-3 3"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04"/>
+      <body pos="0.4 0 0">
+        <joint name="j1" type="hinge" axis="0 1 0" range="-2 2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_demo_of_a_model_file_writes_into_out_dir(tmp_path):
+    model = tmp_path / "models" / "arm.xml"
+    model.parent.mkdir()
+    model.write_text(ARM)
+    out = tmp_path / "pngs"
+    result = run_tsrl("demo", "--scene", str(model), "--out-dir", str(out), "--poses", "1")
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["arm_home.png", "arm_random_0.png"]
+    assert [p.name for p in model.parent.iterdir()] == ["arm.xml"]  # nothing beside the model
+    assert np.asarray(Image.open(out / "arm_home.png")).std() > 10
+
+
 def test_unknown_scene_exits_2_with_one_line_error(tmp_path):
     result = run_tsrl("demo", "--scene", "kitchen", "--out-dir", str(tmp_path))
     assert result.returncode == 2

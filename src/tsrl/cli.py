@@ -252,7 +252,8 @@ COMMANDS: dict[str, type] = {
 
 
 def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) -> list[Path]:
-    """Renders `scene` at its home keyframe and at `n_random` seeded random poses; returns the PNG paths."""
+    """Renders `scene` at its home keyframe and at `n_random` seeded random poses into `out_dir`
+    (<scene or model file stem>_home.png, ..._random_<i>.png); returns the PNG paths."""
     from PIL import Image
 
     from .rendering import SceneRenderer
@@ -268,11 +269,12 @@ def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) 
         (f"random_{i}", np.clip(home + rng.uniform(-0.6, 0.6, len(home)), *limits.T)) for i in range(n_random)
     ]
     out_dir.mkdir(parents=True, exist_ok=True)
+    stem = scene if scene in SCENES else Path(scene).stem  # a model file's name, not its path
     paths = []
     with SceneRenderer(model) as renderer:
         for name, q in poses:
             forward_kinematics(model, data, q)
-            path = out_dir / f"{scene}_{name}.png"
+            path = out_dir / f"{stem}_{name}.png"
             Image.fromarray(renderer.render(data)).save(path)
             paths.append(path)
     return paths
