@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -75,7 +75,7 @@ class TaskEnv(gym.Env, EzPickle):
         render_mode: None, "rgb_array" or "human"; width, height: rgb_array image size.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}  # noqa: RUF012 (Gymnasium's)
 
     def __init__(
         self,
@@ -147,7 +147,8 @@ class TaskEnv(gym.Env, EzPickle):
                 "desired_goal": spaces.Box(-np.inf, np.inf, (self.goal.dim,), np.float64),
             }
         )
-        self.action_space = spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
+        self._action_shape = (self.action_map.dim,)
+        self.action_space = spaces.Box(-1.0, 1.0, self._action_shape, np.float32)
         self._action_low = self.action_space.low.astype(np.float64)
         self._action_high = self.action_space.high.astype(np.float64)
         self.bound_robot.reset_to_home(self.model, self._ik_data)
@@ -186,7 +187,7 @@ class TaskEnv(gym.Env, EzPickle):
         return obs, info | {"ik_error": 0.0}
 
     def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        a = _checked_action(action, self.action_space.shape, self._action_low, self._action_high)
+        a = _checked_action(action, self._action_shape, self._action_low, self._action_high)
         q_target, ik_error = self._joint_targets(a)
         self._ctrl[self.bound_robot.ctrl] = q_target
         if self._suction_ctrl is not None:

@@ -48,25 +48,31 @@ class _Rows:
         self.index = as_slice(rows)
         self.n = len(rows)
         self.width = width  # >= n: extra columns stay 0 (the desired value of penalty maps)
+        self._view = isinstance(self.index, slice) and width == self.n
 
-    def bind(self, y: np.ndarray, J: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        if isinstance(self.index, slice) and self.width == self.n:
-            return y[self.index], (J[self.index] if J is not None else None)
-        return np.zeros(self.width), (np.empty((self.n, J.shape[1])) if J is not None else None)
+    def bind(self, y: np.ndarray) -> np.ndarray:
+        """The rows of values y: a view, or a buffer (width,) that `gather` fills."""
+        return y[self.index] if self._view else np.zeros(self.width)
 
-    def gather(
-        self, y: np.ndarray, out: np.ndarray, J: np.ndarray | None = None, J_out: np.ndarray | None = None
-    ) -> None:
-        """Copies the rows into the buffers `bind` made (nothing to do for views)."""
+    def bind_jacobian(self, J: np.ndarray) -> np.ndarray:
+        """The rows of Jacobian J: a view, or a buffer (n, nv) that `gather_jacobian` fills."""
+        return J[self.index] if self._view else np.empty((self.n, J.shape[1]))
+
+    def gather(self, y: np.ndarray, out: np.ndarray) -> None:
+        """Copies the rows of y into the buffer `bind` made (nothing to do for a view)."""
         if isinstance(self.index, slice):
-            if self.width != self.n:
+            if not self._view:
                 out[: self.n] = y[self.index]
-                if J is not None:
-                    J_out[:] = J[self.index]
-            return
-        np.take(y, self.index, out=out[: self.n])
-        if J is not None:
-            np.take(J, self.index, axis=0, out=J_out)
+        else:
+            np.take(y, self.index, out=out[: self.n])
+
+    def gather_jacobian(self, J: np.ndarray, out: np.ndarray) -> None:
+        """Copies the rows of J into the buffer `bind_jacobian` made (nothing to do for a view)."""
+        if isinstance(self.index, slice):
+            if not self._view:
+                out[:] = J[self.index]
+        else:
+            np.take(J, self.index, axis=0, out=out)
 
 
 class StepPlan:
@@ -113,10 +119,11 @@ class StepPlan:
         y, J = value
         if value is not self._value:  # the stack's buffers, the same from the first call on: view them once
             self._value = value
-            self.views = (y[: self.obs_map.dim], self._achieved.bind(y)[0], self._desired.bind(y)[0])
+            self.views = (y[: self.obs_map.dim], self._achieved.bind(y), self._desired.bind(y))
             if self._ik is not None:
-                self.ik_value = TaskMapValue(*self._ik.bind(y, J))
+                self.ik_value = TaskMapValue(self._ik.bind(y), self._ik.bind_jacobian(J))
         self._achieved.gather(y, self.views[1])
         self._desired.gather(y, self.views[2])
         if self._ik is not None and self.ik_value is not None:
-            self._ik.gather(y, self.ik_value.y, J, self.ik_value.J)
+            self._ik.gather(y, self.ik_value.y)
+            self._ik.gather_jacobian(J, self.ik_value.J)

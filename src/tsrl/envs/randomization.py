@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -14,7 +15,7 @@ from ..robots import BoundRobot
 from ..taskmaps import parse_spec
 from .goals import Goal, goal_positions
 from .scenes import TARGET_BODY
-from .tasks import PositionSampler, Task
+from .tasks import ObstacleSampler, OrientationSampler, PositionSampler, Task
 
 
 class Randomizer:
@@ -29,11 +30,11 @@ class Randomizer:
         self.model = model
         self.task = task
         self.goal = goal
-        self._nominal = (
-            np.array(task.goal.orientation.nominal or model.body_quat[name_to_id(model, "body", TARGET_BODY)])
-            if task.goal.orientation
-            else None
-        )
+        self._orientation: tuple[OrientationSampler, np.ndarray] | None = None  # the sampler, its nominal
+        if task.goal.orientation is not None:
+            sampler = task.goal.orientation
+            nominal = np.array(sampler.nominal or model.body_quat[name_to_id(model, "body", TARGET_BODY)])
+            self._orientation = (sampler, nominal)
         self._arm_qpos = robot.qpos
         self._arm_ctrl = robot.ctrl
         self._n_joints = len(robot.joints)
@@ -44,17 +45,15 @@ class Randomizer:
             if joint < 0 or int(model.jnt_type[joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
                 raise InvalidConfig(f"object {obj.body!r} needs a free joint to be placed at reset")
             self._objects.append((int(model.jnt_qposadr[joint]), obj))
-        self._obstacle = None
-        self._at_goal: _RobotAtGoal | None = None
+        self._obstacle: _Obstacle | None = None
         if task.obstacle is not None:
             o = task.obstacle
             mocap = int(model.body_mocapid[name_to_id(model, "body", o.body)])
             if mocap < 0:
                 raise InvalidConfig(f"obstacle body {o.body!r} must be a mocap body")
             geom = name_to_id(model, "geom", o.geom)
-            self._obstacle = (mocap, geom, name_to_id(model, "site", robot.robot.tcp))
-            if o.clear_at_goal:
-                self._at_goal = _RobotAtGoal(model, task, robot)
+            at_goal = _RobotAtGoal(model, task, robot) if o.clear_at_goal else None
+            self._obstacle = _Obstacle(o, mocap, geom, name_to_id(model, "site", robot.robot.tcp), at_goal)
 
     def randomize(self, data: mujoco.MjData, rng: np.random.Generator) -> None:
         """Samples and sets the start state and goal in `data` (after a reset to the home keyframe)."""
@@ -68,23 +67,32 @@ class Randomizer:
             pos = _sample_box(rng, obj.center, obj.half_extent)
             data.qpos[adr : adr + 7] = [*pos, 1.0, 0.0, 0.0, 0.0]
             starts.append(pos)
+        obstacle = self._obstacle
         tcp_start = None
-        if self._obstacle is not None:
+        if obstacle is not None:
             mujoco.mj_kinematics(self.model, data)
-            tcp_start = data.site_xpos[self._obstacle[2]].copy()
+            tcp_start = data.site_xpos[obstacle.tcp_site].copy()
         for _ in range(_GOAL_AND_OBSTACLE_TRIES):
             goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
-            quat = self._sample_orientation(rng) if task.goal.orientation is not None else None
+            quat = (
+                self._sample_orientation(rng, *self._orientation) if self._orientation is not None else None
+            )
             for i, pos in enumerate(goal_positions(goal, task.goal.offsets)):
                 self.goal.place_marker(data, i, pos, quat if i == 0 else None)
-            if self._obstacle is None or self._place_obstacle(data, rng, tcp_start, goal):
+            if (
+                obstacle is None
+                or tcp_start is None
+                or self._place_obstacle(data, rng, obstacle, tcp_start, goal)
+            ):
                 return
-            if not task.obstacle.clear_at_goal:
+            if obstacle.at_goal is None:
                 return  # v0 tasks keep the last draw of the obstacle
+        assert obstacle is not None  # only the obstacle's rules can fail every draw
         raise InvalidConfig(
-            f"{task.source or task.name}: obstacle: no goal and obstacle drawn in {_GOAL_AND_OBSTACLE_TRIES} tries leave the robot untouched at "
-            f"the start and at the goal with {task.obstacle.goal_clearance} m of room (goal_clearance); widen the "
-            "goal box or lower goal_clearance or the obstacle's size"
+            f"{task.source or task.name}: obstacle: no goal and obstacle drawn in {_GOAL_AND_OBSTACLE_TRIES} "
+            "tries leave the robot untouched at the start and at the goal with "
+            f"{obstacle.spec.goal_clearance} m of room (goal_clearance); widen the goal box or lower "
+            "goal_clearance or the obstacle's size"
         )
 
     def _sample_goal(
@@ -115,14 +123,16 @@ class Randomizer:
             "goal box is that far from the start; lower it or widen goal.position.half_extent"
         )
 
-    def _sample_orientation(self, rng: np.random.Generator) -> np.ndarray:
-        """The nominal orientation turned by a yaw about its z axis, then tilted within the cone."""
-        o = self.task.goal.orientation
+    @staticmethod
+    def _sample_orientation(
+        rng: np.random.Generator, o: OrientationSampler, nominal: np.ndarray
+    ) -> np.ndarray:
+        """The nominal orientation (4,) turned by a yaw about its z axis, then tilted within the cone."""
         cos_tilt = rng.uniform(math.cos(math.radians(o.cone)), 1.0)
         azimuth = rng.uniform(0.0, 2 * math.pi)
         yaw = rng.uniform(-math.radians(o.max_yaw), math.radians(o.max_yaw))
         rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, self._nominal)
+        mujoco.mju_quat2Mat(rot, nominal)
         z = rot.reshape(3, 3)[:, 2]
         e1 = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
         e1 /= np.linalg.norm(e1)
@@ -130,18 +140,22 @@ class Randomizer:
         tilt, turn, out, tmp = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4)
         mujoco.mju_axisAngle2Quat(tilt, axis, math.acos(min(cos_tilt, 1.0)))
         mujoco.mju_axisAngle2Quat(turn, np.array([0.0, 0.0, 1.0]), yaw)
-        mujoco.mju_mulQuat(tmp, self._nominal, turn)
+        mujoco.mju_mulQuat(tmp, nominal, turn)
         mujoco.mju_mulQuat(out, tilt, tmp)
         return out
 
     def _place_obstacle(
-        self, data: mujoco.MjData, rng: np.random.Generator, start: np.ndarray, goal: np.ndarray
+        self,
+        data: mujoco.MjData,
+        rng: np.random.Generator,
+        obstacle: _Obstacle,
+        start: np.ndarray,
+        goal: np.ndarray,
     ) -> bool:
         """Draws the obstacle until it touches nothing at the start, leaves `goal_clearance` m between its
         surface and the goal, horizontally, and, with `clear_at_goal`, touches nothing with the robot at
         the goal (at most `_OBSTACLE_TRIES` draws; the last one stays). Returns whether it meets them."""
-        o = self.task.obstacle
-        mocap, geom, _ = self._obstacle
+        o, mocap, geom, _, at_goal = obstacle
         robot_at_goal = False  # solved once per goal, when a draw first needs it
         for _ in range(_OBSTACLE_TRIES):
             u = rng.uniform(o.fraction_low, o.fraction_high)
@@ -154,12 +168,12 @@ class Randomizer:
             mujoco.mj_collision(self.model, data)
             if _touches(data, geom) or np.linalg.norm((goal - center)[:2]) < radius + o.goal_clearance:
                 continue
-            if not o.clear_at_goal:
+            if at_goal is None:
                 return True
             if not robot_at_goal:
-                self._at_goal.solve(data, goal)
+                at_goal.solve(data, goal)
                 robot_at_goal = True
-            if not self._at_goal.touches(data.mocap_pos, geom):
+            if not at_goal.touches(data.mocap_pos, geom):
                 return True
         return False
 
@@ -170,6 +184,17 @@ _GOAL_TRIES = 1000
 _OBSTACLE_TRIES = 20
 #: With `clear_at_goal`: draws of the goal (each with up to _OBSTACLE_TRIES obstacles) before giving up.
 _GOAL_AND_OBSTACLE_TRIES = 100
+
+
+class _Obstacle(NamedTuple):
+    """The obstacle's sampler and ids: its mocap body, geom, the TCP site, and the robot at the goal
+    (with `clear_at_goal`, else None)."""
+
+    spec: ObstacleSampler
+    mocap: int
+    geom: int
+    tcp_site: int
+    at_goal: _RobotAtGoal | None
 
 
 def _touches(data: mujoco.MjData, geom: int) -> bool:
