@@ -24,7 +24,6 @@ import csv
 import json
 import math
 from collections import defaultdict
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +35,7 @@ from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
 from . import statistics as st
 from .config import EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
+from .curves import FINAL_EVALS, Curve, curves, row_key
 from .plots import plot_curves, plot_profile
 from .runner import ERROR_FILE
 from .statistics import THRESHOLDS
@@ -54,7 +54,6 @@ RESULT_COLUMNS: tuple[str, ...] = (
     "eval_success_rate",
     "eval_penalised_rate",
 )
-FINAL_EVALS = 3
 RESULTS_CSV = "results.csv"
 SUMMARY_CSV = "summary.csv"
 COMPARISONS_CSV = "comparisons.csv"
@@ -103,10 +102,6 @@ def variants(cfgs: list[TrainConfig]) -> list[str]:
     return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
 
 
-def row_key(row: dict[str, Any]) -> Key:
-    return (row["env"], row["obs"], row["action"], row["algo"], row["variant"])
-
-
 def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
     """Tidy rows, one per run and evaluation, with RESULT_COLUMNS."""
     cfgs = [load_config(d) for d in run_dirs]
@@ -146,65 +141,6 @@ def sort_key(row: dict[str, Any]) -> tuple[Any, ...]:
     presets = list(OBS_PRESETS)
     rank = presets.index(row["obs"]) if row["obs"] in presets else len(presets)
     return (row["env"], rank, *row_key(row)[1:], row["seed"], row["env_steps"])
-
-
-@dataclass(frozen=True)
-class Curve:
-    """A configuration's learning curve: success of each seed at the evaluations all seeds reached."""
-
-    key: Key
-    seeds: tuple[int, ...]
-    eval_episodes: tuple[int, ...]
-    """Episodes per evaluation of the configuration's runs (distinct values)."""
-    env_steps: np.ndarray
-    """(m,) evaluation env steps common to all seeds."""
-    success: np.ndarray
-    """(n seeds, m) evaluation success rates."""
-    penalised: np.ndarray | None = None
-    """(n seeds, m) shares of evaluation episodes with a penalised step (NaN where not recorded)."""
-
-    def stats(self) -> st.Estimate:
-        """IQM across seeds and its 95% stratified-bootstrap interval at each evaluation."""
-        return st.iqm_interval(self.success)
-
-    def seed_metrics(self) -> dict[str, np.ndarray]:
-        """Per seed (n,): each of COMPARISON_METRICS (NaN AUC with a single evaluation)."""
-        auc = (
-            st.area_under_curve(self.env_steps, self.success)
-            if len(self.env_steps) > 1
-            else np.full(len(self.seeds), math.nan)
-        )
-        penalised = self.penalised if self.penalised is not None else np.full(self.success.shape, math.nan)
-        return {
-            "auc": auc,
-            "final_success": self.success[:, -FINAL_EVALS:].mean(axis=1),
-            "final_penalised": penalised[:, -FINAL_EVALS:].mean(axis=1),
-        }
-
-
-def curves(rows: list[dict[str, Any]]) -> list[Curve]:
-    """One Curve per configuration, in the order configurations first appear in `rows`."""
-    by_run: dict[Key, dict[int, dict[int, dict[str, Any]]]] = defaultdict(lambda: defaultdict(dict))
-    for r in rows:
-        by_run[row_key(r)][r["seed"]][r["env_steps"]] = r
-    out = []
-    for key, runs in by_run.items():
-        seeds = tuple(sorted(runs))
-        common = sorted(set.intersection(*(set(runs[s]) for s in seeds)))
-        out.append(
-            Curve(
-                key=key,
-                seeds=seeds,
-                eval_episodes=tuple(sorted({r["eval_episodes"] for s in seeds for r in runs[s].values()})),
-                env_steps=np.array(common, dtype=int),
-                success=np.array([[runs[s][t]["eval_success_rate"] for t in common] for s in seeds]),
-                penalised=np.array(
-                    [[runs[s][t].get("eval_penalised_rate", math.nan) for t in common] for s in seeds],
-                    dtype=float,
-                ),
-            )
-        )
-    return out
 
 
 def time_to_threshold(run: list[dict[str, Any]], threshold: float, unit: str) -> tuple[float, bool]:

@@ -16,7 +16,7 @@ from .config import config_labels, env_label
 from .statistics import THRESHOLDS
 
 if TYPE_CHECKING:
-    from .aggregate import Curve
+    from .curves import Curve
     from .statistics import Estimate
 
 #: The paper's colours of the Table I presets.
