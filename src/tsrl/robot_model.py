@@ -237,7 +237,8 @@ def _home_q(model: mujoco.MjModel, robot: Robot) -> np.ndarray:
     q = np.asarray(robot.home, dtype=np.float64)
     if q.shape != (len(robot.joints),) or not np.isfinite(q).all():
         raise InvalidConfig(
-            f"{list(robot.home)}; accepted: a keyframe's name or {len(robot.joints)} finite joint values"
+            f"{list(robot.home)} ({len(robot.home)} values); accepted: a keyframe's name or "
+            f"{len(robot.joints)} finite joint values"
         )
     limits = joint_limits(model, robot.joints)
     outside = [
