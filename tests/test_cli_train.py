@@ -169,6 +169,61 @@ def test_demonstrations_off_train_the_run_without_them(off, trained_run, tmp_pat
     assert learning_columns(run_dir) == learning_columns(trained_run)  # the run without demonstrations
 
 
+#: `python -c` running the real `tsrl` as its console script does (argv after the code) with one pause
+#: in its start-up: at the first `import torch` (Train.run loads torch once the input is valid) it prints
+#: "importing torch" and waits for a line on stdin, so a SIGINT sent after that line arrives during
+#: start-up, every time.
+PAUSE_AT_TORCH_IMPORT = """
+import sys
+
+def pause(event, args):
+    if event == "import" and args[0] == "torch" and not paused:
+        paused.append(True)
+        print("importing torch", flush=True)
+        sys.stdin.readline()
+
+paused = []
+sys.addaudithook(pause)
+from tsrl.cli import main
+sys.exit(main())
+"""
+
+
+def test_ctrl_c_during_start_up_is_one_line_and_exit_130(tmp_path):
+    proc = subprocess.Popen(
+        [sys.executable, "-c", PAUSE_AT_TORCH_IMPORT, "train", "--out-dir", str(tmp_path), *TINY],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert proc.stdout.readline() == "importing torch\n"
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT, stderr
+    assert stderr.splitlines() == ["tsrl: interrupted"]
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_second_ctrl_c_stops_at_once_in_one_line_and_exit_130(tmp_path):
+    # Updates every 10,000 episodes: after the first SIGINT the next safe point is 500,000 steps away.
+    proc = spawn(
+        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "1000000", "--buffer-size", "2000",
+        "--train-freq-episodes", "10000",
+    )  # fmt: skip
+    run_dir = tmp_path / RUN_NAME
+    wait_for(lambda: (run_dir / "progress.csv").is_file() and steps_column(run_dir) == [(0, 0)], proc)
+    proc.send_signal(signal.SIGINT)  # the step-0 evaluation ran inside training: SIGINT is caught
+    while "SIGINT: stopping at the next update boundary" not in proc.stderr.readline():
+        assert proc.poll() is None
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT, stderr
+    expected = (
+        "tsrl train: interrupted at once, without saving a checkpoint; "
+        f"continue with: tsrl train --resume {run_dir}"
+    )
+    assert stderr.splitlines() == [expected]
+    assert checkpoint_steps(run_dir) == [] and not (run_dir / "train.lock").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "expected"),
     [

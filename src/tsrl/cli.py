@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import signal
 import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -25,7 +26,7 @@ import tyro._errors
 from tyro.conf import Positional, arg
 
 from .agents.config import TrainConfig, check_env_id
-from .agents.run_folder import check_not_locked, load_config
+from .agents.run_folder import CONFIG_FILE, check_not_locked, load_config
 from .assets import SCENES, load_model
 from .exceptions import InvalidConfig, TsrlError
 from .experiments.cli import EXPERIMENT_COMMANDS
@@ -71,6 +72,16 @@ class Train:
         except TrainingInterrupted as stop:
             print(f"tsrl train: {stop}", file=sys.stderr)
             return 128 + stop.signum
+        except KeyboardInterrupt:  # a second Ctrl-C (the first stops at the next safe point)
+            run_dir = self.resume or self.out_dir / self.config.run_name
+            if not (run_dir / CONFIG_FILE).is_file():
+                raise  # before the run folder was made: main's line
+            print(
+                "tsrl train: interrupted at once, without saving a checkpoint; "
+                f"continue with: tsrl train --resume {run_dir}",
+                file=sys.stderr,
+            )
+            return 128 + signal.SIGINT
         return 0
 
     def with_run_config(self, argv: Sequence[str]) -> Train:
@@ -339,6 +350,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TsrlError as err:
         print(f"tsrl: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C before a command catches it itself (start-up), or a second one
+        print("tsrl: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
 
 
 def _check_env_options(cfg: TrainConfig) -> None:

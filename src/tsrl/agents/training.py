@@ -160,14 +160,16 @@ class _Session:
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
         callback = _SafePointCallback(self, state, last_row)
         remaining = cfg.total_timesteps - model.num_timesteps
-        with _SignalCatcher(self):
-            if remaining > 0:
-                model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
-            else:
-                callback.init_callback(model)
-                callback.on_training_end()
+        try:
+            with _SignalCatcher(self):
+                if remaining > 0:
+                    model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
+                else:
+                    callback.init_callback(model)
+                    callback.on_training_end()
+        finally:  # also on a second Ctrl-C: the progress bar ends its line, progress.csv is closed
+            callback.close()
         model.logger.close()
-        callback.close()
         _summary(self.run_dir, callback)
 
     def close(self) -> None:
