@@ -33,6 +33,7 @@ from .assets import SCENES, load_model, panda, ur5e
 from .configs import load_file
 from .exceptions import InvalidConfig, ModelLoadError, UnknownName
 from .kinematics import arm_qpos_indices, as_slice, controlled_joints, joint_limits, name_to_id
+from .model_files import is_package_path
 from .taskmaps import resolve_frame
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
@@ -288,6 +289,6 @@ def load_robot(robot: str | Path | Robot) -> Robot:
     if path.suffix.lower() != ".toml" or not path.is_file():
         raise UnknownRobot(str(robot), ROBOTS)
     loaded = load_file(Robot, path, section="robot")
-    if loaded.model in SCENES or Path(loaded.model).is_absolute():
+    if loaded.model in SCENES or is_package_path(loaded.model) or Path(loaded.model).is_absolute():
         return loaded
     return dataclasses.replace(loaded, model=str(path.parent / loaded.model))  # relative to the file
