@@ -274,3 +274,102 @@ def test_a_robot_file_loads_with_its_model_relative_to_it(tmp_path):
     robot = load_robot(tmp_path / "arm.toml")
     assert robot.model == str(tmp_path / "arm.xml") and robot.home == (0.0, 1.5)
     assert robot.joints == ("shoulder_pan", "shoulder_lift") and robot.actuators == robot.joints
+
+
+def _write_run(tmp_path: Path, config: dict) -> Path:
+    import json
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "config.json").write_text(json.dumps(config))
+    return run_dir
+
+
+def test_a_run_config_json_round_trips_and_one_from_before_the_newer_keys_loads_with_their_defaults(tmp_path):
+    from tsrl.agents.config import AgentConfig, HerConfig, TrainConfig
+    from tsrl.agents.run_folder import load_config
+
+    cfg = TrainConfig(
+        obs="fs2", seed=3, agent=AgentConfig(algo="td3", net_arch=(64, 64), her=HerConfig("plain"))
+    )
+    (tmp_path / "new").mkdir()
+    assert load_config(_write_run(tmp_path / "new", cfg.to_dict())) == cfg
+    old = TrainConfig().to_dict()
+    for key in ("policy_inputs", "demos"):  # keys that later versions added
+        del old["agent"][key]
+    assert load_config(_write_run(tmp_path, old)) == TrainConfig()
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (("agent", "lr"), 0.1, "unknown key 'lr' in [agent]; accepted: algo, net_arch, policy_inputs"),
+        (("seed",), "0", "seed must be an integer; got '0'"),
+        (("total_timesteps",), True, "total_timesteps must be an integer; got True"),
+        (("agent", "learning_rate"), True, "agent.learning_rate must be a number; got True"),
+        (("agent", "net_arch"), 256, "agent.net_arch must be a list; got 256"),
+        (("agent", "net_arch"), [256, 256.0], "agent.net_arch[1] must be an integer; got 256.0"),
+        (("agent", "algo"), "ppo", "agent.algo = 'ppo'; accepted: 'ddpg', 'td3', 'sac'"),
+        (("agent", "her", "strategy"), "past", "agent.her.strategy = 'past'; accepted: 'future'"),
+        (("agent",), 3, "agent must be a table; got 3"),
+        (("agent", "her"), [], "agent.her must be a table; got []"),
+        (("agent", "demos", "path"), 1, "agent.demos.path must be a string; got 1"),
+        (("agent", "gamma"), 2, "[agent] gamma must be in (0, 1]; got 2.0"),
+    ],
+)
+def test_run_config_json(tmp_path, path, value, message):
+    from tsrl.agents.config import TrainConfig
+    from tsrl.agents.run_folder import load_config
+
+    config = TrainConfig().to_dict()
+    table = config
+    for key in path[:-1]:
+        table = table[key]
+    table[path[-1]] = value
+    run_dir = _write_run(tmp_path, config)
+    with pytest.raises(InvalidConfig) as err:
+        load_config(run_dir)
+    _one_line_naming(err, run_dir / "config.json", message)
+
+
+EXPERIMENT = """
+obs = ["fs1", "baseline"]
+seeds = [0, 1]
+
+[agent]
+learning_starts = 100
+
+[[comparisons]]
+a = "fs1"
+b = "baseline"
+"""
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("seeds = [0, 1]", "seed = [0, 1]", "unknown key 'seed'; accepted: description, env, obs, action, algo"),
+        ("learning_starts = 100", "lr = 0.1", "unknown key 'lr' in [agent]; accepted: algo, net_arch"),
+        ('b = "baseline"', 'b = "baseline"\nalpha = 0.1', "unknown key 'alpha' in [comparisons[0]]"),
+        ('b = "baseline"', "", "missing key 'b' in [comparisons[0]]"),
+        ("[agent]", "[demos]\nseed = 1\n[agent]", "missing key 'episodes' in [demos]"),
+        ("seeds = [0, 1]", 'seeds = [0, "1"]', "seeds[1] must be an integer; got '1'"),
+        ("seeds = [0, 1]", "seeds = [0, true]", "seeds[1] must be an integer; got True"),
+        ("learning_starts = 100", "learning_starts = false", "agent.learning_starts must be an integer; got False"),
+        ("seeds = [0, 1]", "seeds = [0, 1]\ntotal_timesteps = 1.5", "total_timesteps must be an integer; got 1.5"),
+        ("learning_starts = 100", "net_arch = 256", "agent.net_arch must be a list; got 256"),
+        ("seeds = [0, 1]", 'seeds = [0, 1]\nalgo = ["ppo"]', "algo[0] = 'ppo'; accepted: 'ddpg', 'td3', 'sac'"),
+        ("[agent]", '[agent.her]\nstrategy = "past"\n[agent]', "agent.her.strategy = 'past'; accepted:"),
+        ("[agent]\nlearning_starts = 100", "agent = 3", "agent must be a table; got 3"),
+        ("[agent]", "[demos]\nepisodes = 0\n[agent]", "[demos] episodes must be an integer >= 1; got 0"),
+    ],
+)  # fmt: skip
+def test_experiment_files(tmp_path, old, new, message):
+    from tsrl.experiments.config import load_experiment
+
+    path = tmp_path / "my-experiment.toml"
+    assert EXPERIMENT.count(old) == 1
+    path.write_text(EXPERIMENT.replace(old, new))
+    with pytest.raises(InvalidConfig) as err:
+        load_experiment(path, check_envs=False)
+    _one_line_naming(err, path, message)

@@ -20,7 +20,7 @@ from tyro.conf import OmitArgPrefixes, arg
 
 from ..envs.actions import ACTION_MODES
 from ..envs.observations import OBS_PRESETS
-from ..exceptions import InvalidConfig, check_positive
+from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_number
 
 Algo = Literal["ddpg", "td3", "sac"]
 HerRelabel = Literal["feature", "plain"]
@@ -77,9 +77,7 @@ class HerConfig:
     def __post_init__(self) -> None:
         _choice("her relabel mode", self.relabel, HER_RELABEL)
         _choice("her strategy", self.strategy, HER_STRATEGIES)
-        if isinstance(self.n_sampled_goal, bool) or not isinstance(self.n_sampled_goal, int):
-            raise InvalidConfig(f"her n_sampled_goal must be an integer; got {self.n_sampled_goal!r}")
-        check_positive("her n_sampled_goal", self.n_sampled_goal)
+        check_int("her n_sampled_goal", self.n_sampled_goal, 1)
 
 
 @dataclass(frozen=True)
@@ -102,7 +100,7 @@ class DemoConfig:
     def __post_init__(self) -> None:
         if self.path is not None and (not isinstance(self.path, str) or not self.path):
             raise InvalidConfig(f"demos path must be a file path or None; got {self.path!r}")
-        if isinstance(self.batch_share, bool) or not isinstance(self.batch_share, int | float):
+        if not is_number(self.batch_share):
             raise InvalidConfig(f"demos batch_share must be a number; got {self.batch_share!r}")
         if not 0 <= self.batch_share < 1:
             raise InvalidConfig(f"demos batch_share must be in [0, 1); got {self.batch_share}")
@@ -164,14 +162,10 @@ class AgentConfig:
 
     def __post_init__(self) -> None:
         _choice("algo", self.algo, ALGOS)
-        object.__setattr__(self, "net_arch", tuple(self.net_arch))
-        if not self.net_arch or any(
-            isinstance(n, bool) or not isinstance(n, int) or n < 1 for n in self.net_arch
-        ):
+        if not self.net_arch or any(not is_int(n) or n < 1 for n in self.net_arch):
             raise InvalidConfig(
                 f"net_arch must be positive layer widths, e.g. 256 256; got {self.net_arch!r}"
             )
-        object.__setattr__(self, "policy_inputs", tuple(self.policy_inputs))
         for key in self.policy_inputs:
             _choice("policy input", key, POLICY_INPUTS)
         if not self.policy_inputs or len(set(self.policy_inputs)) < len(self.policy_inputs):
@@ -187,10 +181,6 @@ class AgentConfig:
             raise InvalidConfig(f"gamma must be in (0, 1]; got {self.gamma}")
         if not 0 < self.tau <= 1:
             raise InvalidConfig(f"tau must be in (0, 1]; got {self.tau}")
-        if isinstance(self.her, dict):
-            object.__setattr__(self, "her", from_dict(HerConfig, self.her))
-        if isinstance(self.demos, dict):
-            object.__setattr__(self, "demos", from_dict(DemoConfig, self.demos))
 
 
 @dataclass(frozen=True)
@@ -244,15 +234,12 @@ class TrainConfig:
             raise InvalidConfig(
                 f"{self.env_id!r} is not a tsrl environment: set obs={NATIVE!r} and action={NATIVE!r}"
             )
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InvalidConfig(f"seed must be an integer >= 0; got {self.seed!r}")
+        check_int("seed", self.seed, 0)
         for name in ("total_timesteps", "eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int):
+            if not is_int(value):
                 raise InvalidConfig(f"{name} must be an integer; got {value!r}")
             check_positive(name, value)
-        if isinstance(self.agent, dict):
-            object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
 
     @property
     def is_task_file(self) -> bool:
@@ -309,34 +296,3 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
-
-
-def from_dict(cls: type, data: dict[str, Any]) -> Any:
-    """Builds config dataclass `cls` from a (JSON) dict, nested dataclasses included; validates it.
-
-    Unknown or missing (required) keys are an error naming the accepted ones.
-    """
-    if not isinstance(data, dict):
-        raise InvalidConfig(f"{cls.__name__} must be a mapping; got {type(data).__name__}")
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - set(fields))
-    if unknown:
-        raise InvalidConfig(f"unknown {cls.__name__} keys {unknown}; accepted: {', '.join(fields)}")
-    required = dataclasses.MISSING
-    missing = [
-        n
-        for n, f in fields.items()
-        if n not in data and f.default is required and f.default_factory is required
-    ]
-    if missing:
-        raise InvalidConfig(f"missing {cls.__name__} keys {missing}; accepted: {', '.join(fields)}")
-    hints = typing.get_type_hints(cls)
-    kwargs: dict[str, Any] = {}
-    for name, value in data.items():
-        hint = hints[name]
-        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
-            value = from_dict(hint, value)
-        elif typing.get_origin(hint) is tuple and isinstance(value, list):
-            value = tuple(value)
-        kwargs[name] = value
-    return cls(**kwargs)

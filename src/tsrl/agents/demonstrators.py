@@ -12,7 +12,7 @@ import numpy as np
 
 from ..envs.actions import ACTION_PRESETS
 from ..envs.keys import OBS_KEYS
-from ..exceptions import InvalidConfig
+from ..exceptions import InvalidConfig, check_int
 from .config import TrainConfig
 from .demo_files import ARRAYS, FORMAT, VERSION, Demonstrations, DemoSpec
 
@@ -204,8 +204,7 @@ def record_demos(
     its config) or the env's scripted controller. Episodes are attempted with `demo_seeds(seed, ...)`
     until enough are kept or `max_attempts` (default 10 x episodes) have run; the file says how many.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 0:
-        raise InvalidConfig(f"episodes must be an integer >= 0; got {episodes!r}")
+    check_int("episodes", episodes, 0)
     demonstrator: Demonstrator
     if policy is not None:
         from_run = PolicyDemonstrator(policy)

@@ -29,9 +29,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Self
 
-from ..exceptions import TsrlError
+from ..configs import load_table
+from ..exceptions import TsrlError, is_number
 from ..files import replacing, write_atomic
-from .config import TrainConfig, from_dict
+from .config import TrainConfig
 
 CONFIG_FILE = "config.json"
 PROGRESS = "progress.csv"
@@ -121,7 +122,7 @@ def load_config(run_dir: Path | str) -> TrainConfig:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
-    return from_dict(TrainConfig, data)
+    return load_table(TrainConfig, data, source=path)
 
 
 def read_progress(run_dir: Path | str) -> list[dict[str, float]]:
@@ -192,7 +193,7 @@ def read_state(checkpoint: Path) -> RunState:
     names = [f.name for f in fields(RunState)]
     if not isinstance(data, dict) or not set(names[:5]) <= set(data) <= set(names):
         raise DamagedCheckpoint(path, f"not a checkpoint state; expected keys {', '.join(names)}")
-    if any(isinstance(v, bool) or not isinstance(v, int | float) or v < 0 for v in data.values()):
+    if any(not is_number(v) or v < 0 for v in data.values()):
         raise DamagedCheckpoint(path, f"counters must be numbers >= 0; got {data}")
     state = RunState(**data)
     if checkpoint.name != f"step_{state.env_steps:010d}":

@@ -10,6 +10,7 @@ a checkpoint is written and TrainingInterrupted raised. A second SIGINT stops at
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import shutil
 import signal
@@ -28,7 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
-from .config import TrainConfig, from_dict
+from .config import TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss
 from .evaluation import Evaluator, eval_seeds
@@ -111,7 +112,7 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
                 if newer.name > checkpoint.path.name:
                     shutil.rmtree(newer)
         if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
-            cfg = from_dict(TrainConfig, cfg.to_dict() | {"total_timesteps": total_timesteps})
+            cfg = dataclasses.replace(cfg, total_timesteps=total_timesteps)
             write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
         if checkpoint is None:  # restarts from scratch: the demonstrations must be the recorded ones
             check_demo_record(run_dir, cfg)

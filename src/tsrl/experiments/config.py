@@ -1,21 +1,21 @@
 """Experiment definitions: a TOML file -> ExperimentConfig -> the grid of TrainConfigs it runs.
 
-A definition is data, never code: `tomllib` reads it, and every key is checked against the fields of
-ExperimentConfig (and `[agent]` against AgentConfig) with an error that names the file, the bad key or
-value and the accepted ones. docs/experiments.md describes the format.
+A definition is data, never code: tsrl.configs reads it into ExperimentConfig (and `[agent]` into
+AgentConfig), every key checked, with an error that names the file, the bad key or value and the
+accepted ones. docs/experiments.md describes the format.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..agents.config import AgentConfig, TrainConfig, from_dict
-from ..exceptions import InvalidConfig, TsrlError
+from ..agents.config import AgentConfig, Algo, TrainConfig
+from ..configs import load_table, read_toml
+from ..exceptions import InvalidConfig, TsrlError, check_int, is_number
 
 #: Folder of experiment definitions, relative to the repository root (the CLI's working directory).
 EXPERIMENTS_DIR = "experiments"
@@ -24,6 +24,9 @@ SUFFIX = ".toml"
 EXPERIMENT_FILE = "experiment.json"
 #: Folder of an experiment's recorded demonstrations ([demos]), inside its results folder.
 DEMOS_DIR = "demos"
+
+#: The grid axes of strings; a definition file may give one as a single string.
+STRING_AXES: tuple[str, ...] = ("env", "obs", "action", "algo")
 
 Key = tuple[str, str, str, str, str]
 """A configuration: (env, obs, action, algo, variant); its runs differ by seed. The variant names
@@ -66,11 +69,7 @@ class Comparison:
             raise InvalidConfig(f"unknown metric {self.metric!r}; accepted: {', '.join(COMPARISON_METRICS)}")
         if self.direction not in DIRECTIONS:
             raise InvalidConfig(f"unknown direction {self.direction!r}; accepted: {', '.join(DIRECTIONS)}")
-        if self.min_effect is not None and (
-            isinstance(self.min_effect, bool)
-            or not isinstance(self.min_effect, int | float)
-            or self.min_effect <= 0
-        ):
+        if self.min_effect is not None and (not is_number(self.min_effect) or self.min_effect <= 0):
             raise InvalidConfig(f"min_effect must be a number > 0; got {self.min_effect!r}")
 
 
@@ -86,10 +85,8 @@ class DemoRecipe:
     """Recording seed: the episodes' seeds are drawn from their own stream (demo_seeds)."""
 
     def __post_init__(self) -> None:
-        for name, low in (("episodes", 1), ("seed", 0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise InvalidConfig(f"{name} must be an integer >= {low}; got {value!r}")
+        check_int("episodes", self.episodes, 1)
+        check_int("seed", self.seed, 0)
 
 
 @dataclass(frozen=True)
@@ -107,7 +104,7 @@ class ExperimentConfig:
     """Observation presets (baseline, simple, fs0, fs1, fs2) or task-map spec strings."""
     action: tuple[str, ...] = ("taskspace",)
     """Action modes: taskspace, taskspace_orient, joint."""
-    algo: tuple[str, ...] = ("ddpg",)
+    algo: tuple[Algo, ...] = ("ddpg",)
     """Algorithms, each combined with HER: ddpg, td3, sac."""
     seeds: tuple[int, ...] = (0,)
     """Seeds of the runs (integers >= 0), e.g. [0, 1, 2, 3, 4]."""
@@ -133,73 +130,40 @@ class ExperimentConfig:
             raise InvalidConfig(f"name must be a non-empty folder name; got {self.name!r}")
         if not isinstance(self.description, str):
             raise InvalidConfig(f"description must be a string; got {self.description!r}")
-        for axis, item_type in (("env", str), ("obs", str), ("action", str), ("algo", str), ("seeds", int)):
+        for axis in (*STRING_AXES, "seeds"):
             values = getattr(self, axis)
-            kind = "string" if item_type is str else "integer"
-            if isinstance(values, str) and item_type is str:
-                values = (values,)
-            if not isinstance(values, list | tuple) or not values:
-                raise InvalidConfig(f"{axis} must be a non-empty list of {kind}s; got {values!r}")
-            for v in values:
-                if isinstance(v, bool) or not isinstance(v, item_type):
-                    raise InvalidConfig(f"{axis} must be a list of {kind}s; got {v!r} ({type(v).__name__})")
-            if axis == "seeds" and min(values) < 0:
-                raise InvalidConfig(f"seeds must be integers >= 0; got {min(values)}")
+            if not values:
+                raise InvalidConfig(f"{axis} must be a non-empty list; got {list(values)!r}")
             repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
             if repeated:
                 raise InvalidConfig(f"{axis} lists {', '.join(map(repr, repeated))} more than once")
-            object.__setattr__(self, axis, tuple(values))
-        if isinstance(self.agent, dict):
-            object.__setattr__(self, "agent", from_dict(AgentConfig, self.agent))
+        if min(self.seeds) < 0:
+            raise InvalidConfig(f"seeds must be integers >= 0; got {min(self.seeds)}")
         self._check_demos()
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
         self._check_comparisons()
 
     def arms(self) -> list[str]:
         """The labels of the grid's configurations, as the report names them (config_labels)."""
-        keys = [
+        keys: list[Key] = [
             (e, o, a, g, "") for e, o, a, g in itertools.product(self.env, self.obs, self.action, self.algo)
         ]
         return config_labels(keys)
 
     def _check_comparisons(self) -> None:
-        if not isinstance(self.comparisons, list | tuple):
-            raise InvalidConfig(
-                f"comparisons must be a list of tables ([[comparisons]]); got {self.comparisons!r}"
-            )
-        comparisons = []
         arms = self.arms()
-        for i, c in enumerate(self.comparisons, start=1):
-            try:
-                if isinstance(c, dict):
-                    missing = [k for k in ("a", "b") if k not in c]
-                    if missing:
-                        raise InvalidConfig(f"missing {' and '.join(missing)} (the two arms compared)")
-                    c = from_dict(Comparison, c)
-                if not isinstance(c, Comparison):
+        for i, c in enumerate(self.comparisons):
+            for arm in (c.a, c.b):
+                if arm not in arms:
                     raise InvalidConfig(
-                        f"must be a table of {', '.join(f.name for f in dataclasses.fields(Comparison))}"
+                        f"[comparisons[{i}]] unknown arm {arm!r}; accepted: {', '.join(arms)}"
                     )
-                for arm in (c.a, c.b):
-                    if arm not in arms:
-                        raise InvalidConfig(f"unknown arm {arm!r}; accepted: {', '.join(arms)}")
-                if c.a == c.b:
-                    raise InvalidConfig(f"compares arm {c.a!r} with itself")
-            except InvalidConfig as err:
-                raise InvalidConfig(f"comparison {i}: {err}") from None
-            comparisons.append(c)
-        object.__setattr__(self, "comparisons", tuple(comparisons))
+            if c.a == c.b:
+                raise InvalidConfig(f"[comparisons[{i}]] compares arm {c.a!r} with itself")
 
     def _check_demos(self) -> None:
-        if isinstance(self.demos, dict):
-            try:
-                object.__setattr__(self, "demos", from_dict(DemoRecipe, self.demos))
-            except InvalidConfig as err:
-                raise InvalidConfig(f"[demos] {err}") from None
         if self.demos is None:
             return
-        if not isinstance(self.demos, DemoRecipe):
-            raise InvalidConfig(f"demos must be a table ([demos]) with episodes and seed; got {self.demos!r}")
         if self.agent.demos.path is not None:
             raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
         from ..agents.demonstrators import SCRIPTED, SCRIPTED_ACTIONS
@@ -255,10 +219,6 @@ def demo_file(exp_dir: Path, cfg: TrainConfig) -> Path:
     return exp_dir / DEMOS_DIR / f"{cfg.env_name}.npz"
 
 
-#: Keys a definition file may hold: ExperimentConfig's fields; `name` comes from the file name.
-FILE_KEYS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name != "name")
-
-
 def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConfig:
     """Reads and validates a definition file; `check_envs` also builds each (env, obs, action) once,
     so an unknown observation spec fails here rather than inside a worker.
@@ -266,12 +226,10 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
     Raises InvalidConfig naming the file, the bad key or value, and the accepted ones.
     """
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except OSError as err:
-        raise InvalidConfig(f"cannot read experiment file {path}: {err.strerror}") from None
-    except tomllib.TOMLDecodeError as err:
-        raise InvalidConfig(f"{path}: not valid TOML: {err}") from None
+    data = read_toml(path)
+    for axis in STRING_AXES:  # a single string is a one-value axis
+        if isinstance(data.get(axis), str):
+            data[axis] = [data[axis]]
     envs = data.get("env")
     if isinstance(envs, list):  # task files are relative to the experiment file
         data["env"] = [
@@ -280,32 +238,13 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             else e
             for e in envs
         ]
-    exp = experiment_from_dict(path.name.removesuffix(SUFFIX), data, where=str(path))
+    agent = data.get("agent")
+    if isinstance(agent, dict) and "algo" in agent:
+        raise InvalidConfig(f"{path}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
+    exp = load_table(ExperimentConfig, data, source=path, extra={"name": path.name.removesuffix(SUFFIX)})
     if check_envs:
         check_environments(exp, where=str(path))
     return exp
-
-
-def experiment_from_dict(name: str, data: dict[str, Any], where: str = "experiment") -> ExperimentConfig:
-    """Builds an ExperimentConfig from a definition's table (keys FILE_KEYS); errors start with `where`."""
-    unknown = sorted(set(data) - set(FILE_KEYS))
-    if unknown:
-        raise InvalidConfig(
-            f"{where}: unknown key {', '.join(map(repr, unknown))}; accepted: {', '.join(FILE_KEYS)}"
-        )
-    agent = data.get("agent", {})
-    if not isinstance(agent, dict):
-        raise InvalidConfig(f"{where}: agent must be a table ([agent]) of AgentConfig fields; got {agent!r}")
-    if "algo" in agent:
-        raise InvalidConfig(f"{where}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
-    try:
-        agent_cfg = from_dict(AgentConfig, agent)
-    except InvalidConfig as err:
-        raise InvalidConfig(f"{where}: [agent] {err}") from None
-    try:
-        return ExperimentConfig(name=name, **{k: v for k, v in data.items() if k != "agent"}, agent=agent_cfg)
-    except InvalidConfig as err:
-        raise InvalidConfig(f"{where}: {err}") from None
 
 
 def check_environments(exp: ExperimentConfig, where: str = "experiment") -> None:

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..exceptions import InvalidConfig
+from ..exceptions import InvalidConfig, is_int
 
 
 def _number(name: str, value: float, *, minimum: float = 0.0, strict: bool = True) -> float:
@@ -23,7 +23,7 @@ def _number(name: str, value: float, *, minimum: float = 0.0, strict: bool = Tru
 
 
 def _count(name: str, value: int, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+    if not (is_int(value) or isinstance(value, np.integer)) or value < minimum:
         raise InvalidConfig(f"{name} must be an integer >= {minimum}; got {value!r}")
     return int(value)
 
