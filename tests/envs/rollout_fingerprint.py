@@ -121,7 +121,16 @@ def main() -> None:
     with np.load(REFERENCE) as ref:
         reference = {k: ref[k] for k in ref.files}
     print(f"reference:        {digest(reference)}")
-    print("bit-identical" if digest(reference) == digest(arrays) else "DIFFERENT")
+    if digest(reference) == digest(arrays):
+        print("bit-identical")
+        return
+    for name, *_ in CASES:  # which cases changed, and which are new
+        keys = sorted(k for k in arrays if k.startswith(f"{name}/"))
+        if not any(k in reference for k in keys):
+            print(f"  {name}: new (no reference yet)")
+        elif digest({k: arrays[k] for k in keys}) != digest({k: reference.get(k, np.zeros(0)) for k in keys}):
+            print(f"  {name}: DIFFERENT")
+    print("DIFFERENT")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env
 
 import tsrl
 from tsrl.envs import TASK_ENV_ID, load_task
-from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver
+from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver, PushSolver
 from tsrl.envs.tasks import builtin_task_path
 from tsrl.exceptions import InvalidConfig, ModelLoadError, NotRelabelable
 
@@ -153,6 +153,8 @@ def test_collision_penalty_stays_exact_under_relabelling():
         ("tsrl/PandaObstacleReach-v0", ObstacleReachSolver),
         ("tsrl/UR5eObstacleReach-v1", ObstacleReachSolver),
         ("tsrl/PandaObstacleReach-v1", ObstacleReachSolver),
+        ("tsrl/UR5ePush-v0", PushSolver),
+        ("tsrl/PandaPush-v0", PushSolver),
     ],
 )
 def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes=100, at_least=99):

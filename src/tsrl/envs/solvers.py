@@ -83,3 +83,66 @@ def _turn(q: np.ndarray, q_goal: np.ndarray, max_angle: float) -> np.ndarray:
     angle = min(angle, max_angle)
     half = angle / 2
     return quaternion_to_rotation(np.array([math.cos(half), *(math.sin(half) * v / norm)]))
+
+
+class PushSolver:
+    """Push: the cup travels high to a point behind the box (on the far side from the goal), descends to
+    the table and pushes the box along the box-goal line, slowing as it nears the goal; it backs off and
+    approaches again when the box slips off the cup's line, and backs off and waits once the box is there.
+    Reads the TCP's position from the environment (the observation need not carry it)."""
+
+    def __init__(
+        self,
+        env: TaskEnv,
+        height: float = 0.09,
+        push_z: float = 0.02,
+        behind: float = 0.055,
+        speed: float = 0.025,
+    ):
+        self.env = env
+        self.step = env.task.action_spec.parts[0].step
+        assert self.step is not None  # the push tasks' position part moves by steps
+        self._tcp = env.model.site(env.robot.tcp).id
+        self.height, self.push_z, self.behind, self.speed = height, push_z, behind, speed
+        self.pushing = self.done = False
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        """Starts in the approach phase."""
+        self.pushing = self.done = False
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        tcp = self.env.data.site_xpos[self._tcp]
+        box, goal = obs["achieved_goal"], obs["desired_goal"]
+        to_goal = (goal - box)[:2]
+        dist = float(np.linalg.norm(to_goal))
+        if dist < 0.015 or (self.done and dist < 0.03):  # there: back off from the box and stay
+            self.pushing, self.done = False, True
+            away = tcp[:2] - box[:2]
+            side = box[:2] + away / max(float(np.linalg.norm(away)), 1e-9) * 0.07
+            return self._towards(tcp, np.array([*side, self.push_z + 0.02]))
+        self.done = False
+        d = to_goal / dist
+        rel = (tcp - box)[:2]
+        along, across = rel @ d, rel @ np.array([-d[1], d[0]])
+        if self.pushing and (abs(across) > 0.02 or along > -0.02 or tcp[2] > self.push_z + 0.02):
+            self.pushing = False  # the box slipped off the cup's line
+        start = box[:2] - d * self.behind
+        if self.pushing:
+            advance = min(self.speed, 0.4 * dist)
+            return self._towards(tcp, np.array([*(start + d * (0.01 + advance)), self.push_z]))
+        if np.linalg.norm(tcp[:2] - start) <= 0.015:  # above or at the start point: descend, then push
+            self.pushing = bool(tcp[2] < self.push_z + 0.005)
+            return self._towards(tcp, np.array([*start, self.push_z]))
+        away = tcp[:2] - box[:2]
+        gap = float(np.linalg.norm(away))
+        if tcp[2] > self.height - 0.015:  # high: travel above the start point
+            target = np.array([*start, self.height])
+        elif gap < 0.06:  # low beside the box: back off from it first, then rise
+            target = np.array([*(box[:2] + away / max(gap, 1e-9) * 0.08), tcp[2] + 0.01])
+        else:
+            target = np.array([*tcp[:2], self.height])
+        return self._towards(tcp, target)
+
+    def _towards(self, tcp: np.ndarray, target: np.ndarray) -> np.ndarray:
+        assert self.step is not None
+        return np.clip((target - tcp) / self.step, -1.0, 1.0)

@@ -245,11 +245,13 @@ BUILTIN_TASKS: dict[str, str] = {
     "UR5ePoseReach-v0": "pose_reach.toml",
     "UR5eObstacleReach-v0": "obstacle_reach.toml",
     "UR5eObstacleReach-v1": "obstacle_reach_v1.toml",
+    "UR5ePush-v0": "push.toml",
     "PandaReach-v0": "panda_reach.toml",
     "PandaPickPlace-v0": "panda_pick_place.toml",
     "PandaPoseReach-v0": "panda_pose_reach.toml",
     "PandaObstacleReach-v0": "panda_obstacle_reach.toml",
     "PandaObstacleReach-v1": "panda_obstacle_reach_v1.toml",
+    "PandaPush-v0": "panda_push.toml",
 }
 
 
