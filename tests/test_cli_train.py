@@ -261,6 +261,19 @@ def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
     assert not any(tmp_path.iterdir())  # no half-made run folder
 
 
+def test_an_environment_outside_tsrl_gets_one_answer(tmp_path):
+    plain = run_tsrl("train", "--env", "CartPole-v1", "--out-dir", str(tmp_path))
+    native = run_tsrl(  # what the first answer used to suggest
+        "train", "--env", "CartPole-v1", "--obs", "native", "--action", "native", "--out-dir", str(tmp_path)
+    )
+    assert plain.returncode == native.returncode == 2
+    assert plain.stderr == native.stderr and len(plain.stderr.strip().splitlines()) == 1, plain.stderr
+    line = plain.stderr.strip()
+    assert line.startswith("tsrl: error: unknown environment 'CartPole-v1'")
+    assert "tsrl/UR5eReach-v0" in line and "task file" in line  # what is accepted
+    assert not any(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize(
     ("args", "expected"),
     [

@@ -50,9 +50,18 @@ def tsrl_env_ids() -> list[str]:
 
 def check_env_id(env_id: str) -> None:
     """Raises InvalidConfig listing tsrl's environments unless `env_id` is one of them (or a task file)."""
-    ids = tsrl_env_ids()
-    if env_id not in ids and not env_id.endswith(TASK_FILE_SUFFIX):
-        raise InvalidConfig(f"unknown environment {env_id!r}; accepted: {', '.join(ids)}")
+    if env_id not in tsrl_env_ids() and not env_id.endswith(TASK_FILE_SUFFIX):
+        raise outside_tsrl(env_id)
+
+
+def outside_tsrl(env_id: str) -> InvalidConfig:
+    """The one answer to an environment that is not tsrl's, wherever it is given (`tsrl train` or
+    TrainConfig): what is accepted, and that others train from Python only (obs and action native)."""
+    return InvalidConfig(
+        f"unknown environment {env_id!r}; accepted: {', '.join(tsrl_env_ids())}, or a task file "
+        f"(*{TASK_FILE_SUFFIX}); environments outside tsrl (Gymnasium goal environments such as "
+        f"FetchReach-v4) train from Python only: TrainConfig(obs={NATIVE!r}, action={NATIVE!r})"
+    )
 
 
 def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
@@ -231,9 +240,7 @@ class TrainConfig:
                     f"obs must be a preset ({', '.join(OBS_PRESETS)}) or a task-map spec; got {self.obs!r}"
                 )
         elif self.obs != NATIVE or self.action != NATIVE:
-            raise InvalidConfig(
-                f"{self.env_id!r} is not a tsrl environment: set obs={NATIVE!r} and action={NATIVE!r}"
-            )
+            raise outside_tsrl(self.env_id)
         check_int("seed", self.seed, 0)
         for name in ("total_timesteps", "eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads"):
             value = getattr(self, name)
