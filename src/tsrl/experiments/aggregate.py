@@ -31,6 +31,7 @@ import numpy as np
 
 from ..agents.config import TrainConfig
 from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
+from ..configs import load_table
 from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
 from . import statistics as st
@@ -259,7 +260,10 @@ def write_report(results_dir: Path | str) -> list[Path]:
     summary = summarize(rows)
     all_curves = curves(rows)
     info = _experiment_info(results_dir)
-    comparisons = tuple(Comparison(**c) for c in info.get("comparisons", []))
+    comparisons = tuple(
+        load_table(Comparison, c, source=results_dir / EXPERIMENT_FILE, where=f"comparisons[{i}]")
+        for i, c in enumerate(info.get("comparisons", []))
+    )
     compared = compare(all_curves, comparisons)
     name = _experiment_name(results_dir)
     paths = [
