@@ -90,9 +90,9 @@ def test_bad_descriptions_are_named(tmp_path):
     ):
         load_robot("ur10")
     (tmp_path / "bad.toml").write_text(
-        'name = "x"\nmodel = "ur5e"\njoints = ["elbow"]\ntcp = "tcp"\ngripper = 1\n'
+        'name = "x"\nmodel = "ur5e"\njoints = ["elbow"]\ntcp = "tcp"\ncamera = 1\n'
     )
-    with pytest.raises(InvalidConfig, match="bad.toml: unknown key 'gripper'; accepted: name, model, joints"):
+    with pytest.raises(InvalidConfig, match="bad.toml: unknown key 'camera'; accepted: name, model, joints"):
         load_robot(tmp_path / "bad.toml")
     (tmp_path / "short.toml").write_text('name = "x"\nmodel = "ur5e"\n')
     with pytest.raises(InvalidConfig, match="short.toml: missing keys 'joints', 'tcp'"):

@@ -83,6 +83,10 @@ class Robot:
     drop_equalities: tuple[str, ...] = ()
     """Equality constraints removed from the model (each by its name, or by a body or joint it
     connects); one left acting on the controlled joints is an error (it pins the arm)."""
+    gripper: str | None = None
+    """Gripper servo, if the arm has a parallel-jaw gripper: a position actuator whose control is the
+    target opening width [m] (in `panda_gripper`, a fixed tendon over the two coupled finger joints,
+    force-limited to the rated grasp force); `gripperWidth(<gripper>)` reads the width."""
 
     def __post_init__(self) -> None:
         if self.actuators and len(self.actuators) != len(self.joints):
@@ -268,6 +272,15 @@ ROBOTS: dict[str, Robot] = {
         home=panda.HOME_KEY,
         actuators=panda.JOINT_NAMES,
         suction=panda.SUCTION_ACTUATOR,
+    ),
+    "panda_gripper": Robot(
+        name="panda_gripper",
+        model="panda_gripper",
+        joints=panda.JOINT_NAMES,
+        tcp=panda.TCP_SITE,
+        home=panda.HOME_KEY,
+        actuators=panda.JOINT_NAMES,
+        gripper=panda.GRIPPER_ACTUATOR,
     ),
 }
 

@@ -19,6 +19,9 @@ SCENES: dict[str, str] = {
     "panda_reach": "scenes/panda_reach.xml",
     "panda_pick_place": "scenes/panda_pick_place.xml",
     "panda_obstacle_reach": "scenes/panda_obstacle_reach.xml",
+    "panda_gripper": "panda/panda_gripper.xml",
+    "panda_gripper_reach": "scenes/panda_gripper_reach.xml",
+    "panda_gripper_pick_place": "scenes/panda_gripper_pick_place.xml",
 }
 
 

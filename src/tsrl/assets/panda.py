@@ -99,3 +99,34 @@ MAX_JOINT_TORQUES = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 
 #: Suction cup tip (site `tcp`) along the flange z axis [m] (the same cup as the UR5e's).
 TCP_OFFSET = 0.07
+
+# -- The Franka Hand (panda/panda_gripper.xml; sources in assets/panda/README.md) ----------------------
+
+#: Mass [kg] of the hand with its fingers (Franka).
+HAND_MASS = 0.73
+#: Mass [kg] of each finger (our choice; Franka publishes the hand's mass only).
+FINGER_MASS = 0.02
+#: Travel [m] of each finger from closed (0) to open (Franka: 80 mm stroke, 40 mm per finger).
+FINGER_TRAVEL = 0.04
+#: Largest opening width [m] between the fingers' inner faces.
+MAX_WIDTH = 2 * FINGER_TRAVEL
+#: Rated continuous grasp force [N] (Franka); the servo's force limit on each finger.
+GRASP_FORCE = 70.0
+#: Peak grasp force [N] (Franka), for short times; not modelled (the servo holds the rated force).
+MAX_GRASP_FORCE = 140.0
+#: TCP (between the fingertips) along the flange z axis [m] (Franka's end-effector frame).
+HAND_TCP_OFFSET = 0.1034
+#: The hand's turn about the flange z axis [rad] (Franka's mounting).
+HAND_YAW = -np.pi / 4
+#: The finger joints along the hand's z axis [m] from the flange (franka_description).
+FINGER_OFFSET = 0.0584
+#: The hand's finger joints (slide joints, 0 = closed) and the servo of the opening width.
+FINGER_JOINTS: tuple[str, ...] = ("finger_left", "finger_right")
+GRIPPER_ACTUATOR = "gripper"
+
+#: Home configuration [rad] of the arm with the hand: HOME_Q with joint 7 turned by pi/4 more, which
+#: undoes the hand's -pi/4, so the TCP frame is the suction Panda's at home (x along world +y, z down);
+#: the fingers open along world x. Keyframe `home` of panda_gripper.xml (fingers open, 40 mm each).
+GRIPPER_HOME_Q = np.array([0.0, -0.3, 0.0, -2.3, 0.0, 2.0, 3 * np.pi / 4])
+#: TCP position [m] at GRIPPER_HOME_Q: HOME_TCP moved down by HAND_TCP_OFFSET - TCP_OFFSET.
+GRIPPER_HOME_TCP = np.array([-0.4569332, 0.0, 0.3640834])
