@@ -26,6 +26,9 @@ AZIMUTH_OFFSET = -45.0
 MARGIN = 1.3
 #: Smallest framed radius [m]: a single point is seen from a sensible distance.
 MIN_RADIUS = 0.3
+#: Markers `SceneRenderer.render` draws: radius [m] and default colour.
+MARKER_RADIUS = 0.012
+MARKER_RGBA = (0.1, 0.4, 0.9, 0.9)
 
 
 def workspace_camera(
@@ -73,7 +76,9 @@ def named_camera(model: mujoco.MjModel, name: str) -> mujoco.MjvCamera:
     """The model's camera `name` (MJCF <camera>). Raises UnknownName listing the model's cameras."""
     cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
     if cid < 0:
-        raise UnknownName("camera", name, names(model, "camera"))
+        raise UnknownName(
+            "camera", name, [model.camera(i).name for i in range(model.ncam) if model.camera(i).name]
+        )
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
     cam.fixedcamid = cid
@@ -107,9 +112,32 @@ class SceneRenderer:
         self.camera = default_camera(model) if camera is None else camera
         self._renderer = mujoco.Renderer(model, height=height, width=width)
 
-    def render(self, data: mujoco.MjData, camera: mujoco.MjvCamera | str | None = None) -> np.ndarray:
-        """RGB image of the current state, shape (height, width, 3), dtype uint8."""
+    def render(
+        self,
+        data: mujoco.MjData,
+        camera: mujoco.MjvCamera | str | None = None,
+        markers: ArrayLike | None = None,
+        rgba: ArrayLike = MARKER_RGBA,
+    ) -> np.ndarray:
+        """RGB image of the current state, shape (height, width, 3), dtype uint8; `markers` (k, 3)
+        [m, world] are drawn as small spheres of colour `rgba` (4,) or (k, 4) (not part of the model)."""
         self._renderer.update_scene(data, camera=self.camera if camera is None else camera)
+        if markers is not None:
+            points = np.atleast_2d(np.asarray(markers, dtype=np.float64))
+            colours = np.broadcast_to(np.asarray(rgba, dtype=np.float32), (len(points), 4))
+            scene = self._renderer.scene
+            for point, colour in zip(points, colours, strict=True):
+                if scene.ngeom >= scene.maxgeom:
+                    break
+                mujoco.mjv_initGeom(
+                    scene.geoms[scene.ngeom],
+                    int(mujoco.mjtGeom.mjGEOM_SPHERE),
+                    np.array([MARKER_RADIUS, 0.0, 0.0]),
+                    point,
+                    np.eye(3).ravel(),
+                    colour,
+                )
+                scene.ngeom += 1
         return self._renderer.render().copy()
 
     def close(self) -> None:
