@@ -135,7 +135,8 @@ class Goal:
         return float(self._reward(success, penalty)), info
 
     def _reward(self, success: np.ndarray, penalty: np.ndarray | float) -> np.ndarray:
-        return np.where(success, self._success_value, self._failure_value) + penalty
+        # failure + success * (success - failure value): exact for both conventions (gap 1).
+        return self._failure_value + success * (self._success_value - self._failure_value) + penalty
 
     def _evaluate(self, achieved: np.ndarray, desired: np.ndarray) -> tuple[Any, Any, Any, Any, Any]:
         """(success, the largest part's squared distance, |q . q_goal| of the pose part or None,
