@@ -19,19 +19,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, Protocol
 
-import mujoco
-import numpy as np
 import tyro
 import tyro._errors
 from tyro.conf import Positional, arg
 
 from .agents.config import TrainConfig, check_env_id
 from .agents.run_folder import CONFIG_FILE, check_not_locked, load_config
-from .assets import SCENES, load_model
+from .assets import SCENES
 from .exceptions import InvalidConfig, TsrlError
 from .experiments.cli import EXPERIMENT_COMMANDS
-from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 from .robot_check import ROBOT_COMMANDS
+from .show import render_poses
 
 RunDir = Annotated[Path, arg(metavar="RUN_DIR")]
 
@@ -207,7 +205,7 @@ class Demo:
             raise InvalidConfig(f"--poses must be >= 0; got {self.poses}")
 
     def run(self) -> int:
-        for path in demo(self.out_dir, self.scene, self.poses, self.seed):
+        for path in render_poses(self.out_dir, self.scene, self.poses, self.seed):
             print(f"wrote {path}")
         return 0
 
@@ -262,35 +260,6 @@ COMMANDS: dict[str, type] = {
     **EXPERIMENT_COMMANDS,
     **ROBOT_COMMANDS,
 }
-
-
-def demo(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) -> list[Path]:
-    """Renders `scene` at its home keyframe and at `n_random` seeded random poses into `out_dir`
-    (<scene or model file stem>_home.png, ..._random_<i>.png); returns the PNG paths."""
-    from PIL import Image
-
-    from .rendering import SceneRenderer
-
-    model = load_model(scene)
-    data = mujoco.MjData(model)
-    rng = np.random.default_rng(seed)
-    qpos = arm_qpos_indices(model)  # the arm's joints (every hinge and slide joint)
-    home = model.key_qpos[name_to_id(model, "key", "home")][qpos] if model.nkey else model.qpos0[qpos]
-    limits = joint_limits(model)
-    # Random poses near home (+-0.6 rad per joint) so that the arm stays in view above the table.
-    poses = [("home", home)] + [
-        (f"random_{i}", np.clip(home + rng.uniform(-0.6, 0.6, len(home)), *limits.T)) for i in range(n_random)
-    ]
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = scene if scene in SCENES else Path(scene).stem  # a model file's name, not its path
-    paths = []
-    with SceneRenderer(model) as renderer:
-        for name, q in poses:
-            forward_kinematics(model, data, q)
-            path = out_dir / f"{stem}_{name}.png"
-            Image.fromarray(renderer.render(data)).save(path)
-            paths.append(path)
-    return paths
 
 
 class CliError(TsrlError):

@@ -15,7 +15,6 @@ import math
 import shutil
 import signal
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Any, Self
@@ -28,6 +27,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
+from ..signals import in_main_thread
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
@@ -122,11 +122,6 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
         finally:
             session.close()
     return run_dir
-
-
-def in_main_thread() -> bool:
-    """Whether this is the main thread (the only one that may install signal handlers)."""
-    return threading.current_thread() is threading.main_thread()
 
 
 class _Session:

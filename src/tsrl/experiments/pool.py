@@ -25,9 +25,9 @@ from typing import Any, TextIO
 
 from ..agents.config import TrainConfig
 from ..agents.run_folder import read_progress
-from ..agents.training import in_main_thread
 from ..exceptions import InvalidConfig
 from ..files import write_atomic
+from ..signals import in_main_thread
 from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
