@@ -11,6 +11,9 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # every Panda seed at >= 95% within 2x the UR5e's env steps?
     python benchmarks/learning.py speed    # learner speed: gradient steps/s, plain SB3 DDPG + HER vs tsrl's
                                            # feature HER vs with demonstrations (BC + Q-filter)
+    python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
+                                           # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
+                                           # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
 
 Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/learning): a finished
 one is reused, an interrupted one resumed, so the script can be stopped and started again. Delete the
@@ -38,17 +41,21 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from fetch_compat import register_fetch_envs
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
-from tsrl.agents.config import NATIVE, DemoConfig
+from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 THRESHOLDS = (0.5, 0.9, 0.95)
 PICK = "tsrl/UR5ePickPlace-v0"
 PANDA = "tsrl/PandaReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
-BUDGETS = {"demos": (50_000, 2_500, 100)}
+BUDGETS = {"demos": (50_000, 2_500, 100), "own-robot": (10_000, 250, 20)}
 BUDGET = (6_000, 200, 20)
 #: The demos suite's demonstrations: the scripted controller's, recorded once (seed 0, successes only).
 DEMO_EPISODES = 100
+#: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
+OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch_reach.toml"
+#: The own-robot target: every seed at this evaluation success within the budget.
+OWN_ROBOT_TARGET = 0.9
 
 
 def configs(
@@ -79,6 +86,13 @@ def configs(
             TrainConfig(env_id="FetchReach-v4", obs=NATIVE, action=NATIVE, seed=s, agent=agent, **common)
             for s in seeds
         ]
+    if suite == "own-robot":
+        from tsrl.envs import load_task
+
+        obs = load_task(OWN_ROBOT).observation  # the task file's own (fs1 on its TCP, robot0:grip)
+        return [
+            TrainConfig(env_id=str(OWN_ROBOT), obs=obs, action=TASK_ACTION, seed=s, **common) for s in seeds
+        ]
     if suite == "her":
         return [
             TrainConfig(obs="fs1", seed=s, agent=AgentConfig(her=HerConfig(relabel=mode)), **common)
@@ -99,7 +113,7 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
     from tsrl.agents.training import resume, train
 
     parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place", PANDA: "panda-reach"}.get(
-        cfg.env_id, "reach"
+        cfg.env_id, "own-robot" if cfg.is_task_file else "reach"
     )
     run_dir = parent / cfg.run_name
     checkpoint = latest_checkpoint(run_dir)
@@ -282,7 +296,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed"])
+    parser.add_argument(
+        "suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot"]
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
     parser.add_argument(
         "--total-timesteps", type=int, default=None, help="per run (default: 6000; demos 50000)"
@@ -347,6 +363,18 @@ def main() -> None:
         summarize(label, run_dirs, train_time=args.suite == "demos")
     if args.suite == "panda":
         panda_within_twice_ur5e(groups)
+    if args.suite == "own-robot":
+        every_seed_reaches(done, OWN_ROBOT_TARGET, total)
+
+
+def every_seed_reaches(run_dirs: list[Path], threshold: float, budget: int) -> None:
+    """Prints each seed's env steps to `threshold` evaluation success and whether all got there within `budget`."""
+    steps = [first_reaching(read_progress(d), threshold)[0] for d in run_dirs]
+    ok = all(math.isfinite(s) and s <= budget for s in steps)
+    print(
+        f"\nenv steps to {threshold:.0%}: {', '.join(_i(s) for s in steps)}; every seed within {budget:,}: "
+        f"{'yes' if ok else 'no'}"
+    )
 
 
 def panda_within_twice_ur5e(groups: dict[str, list[Path]]) -> None:
