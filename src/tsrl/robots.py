@@ -83,6 +83,9 @@ class Robot:
     drop_equalities: tuple[str, ...] = ()
     """Equality constraints removed from the model (each by its name, or by a body or joint it
     connects); one left acting on the controlled joints is an error (it pins the arm)."""
+    base: str | None = None
+    """The robot's base body (`base` in task maps); None: the body the first joint's body hangs from
+    (tsrl.robot_model.arm_base)."""
     gripper: str | None = None
     """Gripper servo, if the arm has a parallel-jaw gripper: a position actuator whose control is the
     target opening width [m] (in `panda_gripper`, a fixed tendon over the two coupled finger joints,
