@@ -15,8 +15,8 @@ $(VENV)/.installed: pyproject.toml scripts/setup.sh
 demo: install  ## the main job: a short real DDPG+HER training on tsrl/UR5eReach-v0 (fs1), report + learning curves in results/quick-reach/
 	$(BIN)/tsrl experiment quick-reach
 
-render-demo: install  ## renders the UR5e reach scene at home and a few poses to results/demo/*.png
-	$(BIN)/tsrl demo --out-dir results/demo
+render-demo: install  ## renders the UR5e reach scene at home and a few poses to results/show/*.png
+	$(BIN)/tsrl show --out-dir results/show
 
 test: install  ## the test suite, without the slow checks
 	$(BIN)/python -m pytest -m "not slow" -n auto --durations=10

@@ -1,4 +1,4 @@
-"""The `tsrl` console script: help, the rendering demo, error exit codes."""
+"""The `tsrl` console script: help, `tsrl show` (a scene to PNG files) and its old name, error exit codes."""
 
 import numpy as np
 from cli_runner import run_tsrl
@@ -8,11 +8,11 @@ from PIL import Image
 def test_help_lists_the_commands():
     result = run_tsrl("--help")
     assert result.returncode == 0
-    assert "demo" in result.stdout
+    assert "show" in result.stdout
 
 
-def test_demo_writes_png_files(tmp_path):
-    result = run_tsrl("demo", "--out-dir", str(tmp_path), "--poses", "2")
+def test_show_writes_png_files(tmp_path):
+    result = run_tsrl("show", "--out-dir", str(tmp_path), "--poses", "2")
     assert result.returncode == 0, result.stderr
     pngs = sorted(tmp_path.glob("*.png"))
     assert [p.name for p in pngs] == ["reach_home.png", "reach_random_0.png", "reach_random_1.png"]
@@ -37,12 +37,12 @@ ARM = """<mujoco>
 """
 
 
-def test_demo_of_a_model_file_writes_into_out_dir(tmp_path):
+def test_show_of_a_model_file_writes_into_out_dir(tmp_path):
     model = tmp_path / "models" / "arm.xml"
     model.parent.mkdir()
     model.write_text(ARM)
     out = tmp_path / "pngs"
-    result = run_tsrl("demo", "--scene", str(model), "--out-dir", str(out), "--poses", "1")
+    result = run_tsrl("show", "--scene", str(model), "--out-dir", str(out), "--poses", "1")
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in out.iterdir()) == ["arm_home.png", "arm_random_0.png"]
     assert [p.name for p in model.parent.iterdir()] == ["arm.xml"]  # nothing beside the model
@@ -50,7 +50,17 @@ def test_demo_of_a_model_file_writes_into_out_dir(tmp_path):
 
 
 def test_unknown_scene_exits_2_with_one_line_error(tmp_path):
-    result = run_tsrl("demo", "--scene", "kitchen", "--out-dir", str(tmp_path))
+    result = run_tsrl("show", "--scene", "kitchen", "--out-dir", str(tmp_path))
     assert result.returncode == 2
     assert "unknown scene 'kitchen'" in result.stderr and "reach" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_demo_is_a_deprecated_alias_of_show(tmp_path):
+    result = run_tsrl("demo", "--out-dir", str(tmp_path), "--poses", "1")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.splitlines() == [
+        "tsrl: 'tsrl demo' is deprecated and goes in the next release; use 'tsrl show'"
+    ]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reach_home.png", "reach_random_0.png"]
+    assert "Deprecated name of `tsrl show`" in run_tsrl("--help").stdout  # listed as such

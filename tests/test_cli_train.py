@@ -240,12 +240,12 @@ def test_a_second_ctrl_c_stops_at_once_in_one_line_and_exit_130(tmp_path):
         (["train", "--net-arch", "64", "x"], "--net-arch"),
         (["train", "--no-such-option", "1"], "unrecognized arguments: --no-such-option 1"),
         (["fly"], "unrecognized arguments: fly"),
-        ([], "missing command; accepted: train, evaluate, render, plot, demo, demos, experiment, report"),
+        ([], "missing command; accepted: train, evaluate, render, plot, show, demos, experiment, report"),
         (["evaluate"], "missing RUN_DIR"),
         (["evaluate", ".", "--episodes", "0"], "--episodes must be >= 1; got 0"),
         (["render", ".", "--size", "8", "8"], "--size must be at least 16 16; got 8 8"),
         (["plot"], "at least one RUN_DIR"),
-        (["demo", "--poses", "-1"], "--poses must be >= 0; got -1"),
+        (["show", "--poses", "-1"], "--poses must be >= 0; got -1"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_code_2(args, expected, tmp_path):
@@ -298,7 +298,7 @@ def test_resume_takes_only_a_new_budget(args, expected, trained_run):
 def test_help_lists_the_training_commands():
     result = run_tsrl("--help")
     assert result.returncode == 0
-    for command in ("train", "evaluate", "render", "demo"):
+    for command in ("train", "evaluate", "render", "show"):
         assert command in result.stdout
     assert "--her-strategy" in run_tsrl("train", "--help").stdout
     assert os.environ.get("MUJOCO_GL", "egl")

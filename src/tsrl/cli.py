@@ -1,4 +1,4 @@
-"""The `tsrl` command line: train, evaluate, render, plot, demo, demos, experiment, report.
+"""The `tsrl` command line: train, evaluate, render, plot, show, demos, experiment, report, ...
 
 Built with tyro: a command is a frozen dataclass whose fields are its options (each field's attribute
 docstring its help text, its type and default those of the option) and whose run() does the work;
@@ -189,10 +189,10 @@ class Plot:
 
 
 @dataclass(frozen=True)
-class Demo:
-    """Render a scene at home and a few poses to PNG files."""
+class Show:
+    """Render a scene (built in or an MJCF file) at home and a few random poses to PNG files."""
 
-    out_dir: Path = Path("results/demo")
+    out_dir: Path = Path("results/show")
     """Folder for the PNG files."""
     scene: Annotated[str, arg(help=f"Built-in scene ({', '.join(SCENES)}) or an MJCF file.")] = "reach"
     poses: int = 3
@@ -208,6 +208,17 @@ class Demo:
         for path in render_poses(self.out_dir, self.scene, self.poses, self.seed):
             print(f"wrote {path}")
         return 0
+
+
+@dataclass(frozen=True)
+class Demo(Show):
+    """Deprecated name of `tsrl show`, which it runs; it goes in the next release."""
+
+    def run(self) -> int:
+        print(
+            "tsrl: 'tsrl demo' is deprecated and goes in the next release; use 'tsrl show'", file=sys.stderr
+        )
+        return super().run()
 
 
 @dataclass(frozen=True)
@@ -255,11 +266,15 @@ COMMANDS: dict[str, type] = {
     "evaluate": Evaluate,
     "render": Render,
     "plot": Plot,
-    "demo": Demo,
+    "show": Show,
     "demos": Demos,
     **EXPERIMENT_COMMANDS,
     **ROBOT_COMMANDS,
 }
+
+
+#: Old command names, kept for one release: listed last in --help, each says so when it runs.
+DEPRECATED_COMMANDS: dict[str, type] = {"demo": Demo}
 
 
 class CliError(TsrlError):
@@ -308,7 +323,7 @@ def parse(argv: Sequence[str] | None = None) -> Command:
     argv = list(sys.argv[1:] if argv is None else argv)
     with _one_line_errors():
         command = tyro.extras.subcommand_cli_from_dict(
-            COMMANDS, args=argv, prog="tsrl", description=__doc__.split("\n\n")[0]
+            COMMANDS | DEPRECATED_COMMANDS, args=argv, prog="tsrl", description=__doc__.split("\n\n")[0]
         )
     if isinstance(command, Train) and command.resume is not None:
         command = command.with_run_config(argv[1:])

@@ -1,7 +1,7 @@
 """Agents: DDPG/TD3/SAC with feature-aware HER, built by a factory; training runs, checkpoints, evaluation.
 
 The configs and run folders import fast; the rest (torch, stable-baselines3) loads on first use, so
-`tsrl --help` and `tsrl demo` stay quick.
+`tsrl --help` and `tsrl show` stay quick.
 """
 
 from __future__ import annotations
