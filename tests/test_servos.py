@@ -193,6 +193,12 @@ def test_gravity_compensation_holds_home_and_its_absence_sags():
     assert held.jnt_actgravcomp[[held.joint(j).id for j in JOINTS]].all()
 
 
+def test_the_base_is_the_robot_files_or_what_the_first_joint_hangs_from():
+    assert prepared(bare_arm())[1].base == "world"
+    assert prepared(bare_arm(), arm_robot(base="base"))[1].base == "base"
+    assert prepared(bare_arm(), arm_robot(joints=("shoulder", "elbow"), home=(-0.5, 1.0)))[1].base == "base"
+
+
 def test_the_home_keyframe_holds_the_joint_values_and_their_servo_targets():
     model, _ = prepared(bare_arm())
     key = model.key(HOME_KEY).id
@@ -293,6 +299,7 @@ BAD = [
         ),
     ),
     ({"suction": "cup"}, "arm.toml: suction: unknown actuator 'cup'; the model's actuators: "),
+    ({"base": "pedestal"}, "arm.toml: base: unknown body 'pedestal'; the model's bodys: base, fore, side,"),
 ]
 
 

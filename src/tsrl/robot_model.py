@@ -71,7 +71,7 @@ class PreparedArm:
         added: the gains of the servos tsrl added (empty where the model has its own).
         bandwidth_hz: the bandwidth of the added servos [Hz]; None where none were added.
         gravity_compensation: whether tsrl turned on gravity compensation of the arm's bodies.
-        base: the body the first controlled joint hangs from ("world" if none).
+        base: the robot's base body (`arm_base`).
         dropped: the equality constraints removed (descriptions).
         notices: the one-line notices issued.
     """
@@ -143,6 +143,7 @@ def prepare_spec(spec: mujoco.MjSpec, robot: Robot, where: str) -> PreparedArm:
     suction = robot.suction
     if suction is not None:
         check("suction", lambda: name_to_id(probe, "actuator", suction))
+    base = check("base", lambda: arm_base(probe, robot))
     drop = _equalities_to_drop(spec, robot.drop_equalities, where)
     if drop:  # the pin check below sees the model without them
         trial = spec.copy()
@@ -186,16 +187,29 @@ def prepare_spec(spec: mujoco.MjSpec, robot: Robot, where: str) -> PreparedArm:
         _add_home_key(spec, probe, joints, home_q, servos, own is None)
     for notice in notices:
         warnings.warn(notice, RobotNotice, stacklevel=2)
-    first = probe.jnt_bodyid[probe.joint(joints[0]).id]
     return PreparedArm(
         servos=tuple(servos),
         added=added,
         bandwidth_hz=bandwidth,
         gravity_compensation=gravity,
-        base=probe.body(int(probe.body_parentid[first])).name or "world",
+        base=base,
         dropped=tuple(dropped),
         notices=tuple(notices),
     )
+
+
+def arm_base(model: mujoco.MjModel, robot: Robot) -> str:
+    """The robot's base body: its `base`, checked, else the body its first joint's body hangs from
+    ("world" for an arm mounted on the world).
+
+    Raises:
+        UnknownName: a `base` the model has no body of that name for (the message lists the bodies).
+    """
+    if robot.base is not None:
+        name_to_id(model, "body", robot.base)
+        return robot.base
+    first = int(model.jnt_bodyid[name_to_id(model, "joint", robot.joints[0])])
+    return model.body(int(model.body_parentid[first])).name or "world"
 
 
 # -- checks ------------------------------------------------------------------------------------------
