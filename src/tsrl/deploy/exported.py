@@ -1,0 +1,67 @@
+"""An export folder's task, built the way training built it, from the folder's own copies.
+
+The task is the folder's task.toml with its scene and robot replaced by the folder's model files and
+robot.toml, then `TaskEnv(task, obs=..., action=...)` with the run's observation and action (the
+contract's `task.env_kwargs`), exactly as `gym.make` built the training environment. The controller
+uses its maps, goal, action map and IK map; the MuJoCo backend uses one as its simulated world.
+Nothing here imports torch or stable-baselines3.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..envs import TaskEnv, load_task
+from .contract import ROBOT, TASK, ContractError
+
+#: The limits every contract records for each controlled joint.
+LIMIT_KEYS = ("max_joint_speed", "max_joint_acceleration")
+
+
+def exported_env(folder: Path | str, contract: dict[str, Any], scene: Path | str | None = None) -> TaskEnv:
+    """The run's environment from an export folder's copies (`scene`: another model file of the same
+    arm instead of the exported scene, e.g. for a MuJoCo backend)."""
+    folder = Path(folder).resolve()
+    task_section = contract["task"]
+    task = load_task(folder / TASK)
+    scene_file = Path(scene).resolve() if scene is not None else folder / task_section["scene"]
+    task = dataclasses.replace(task, scene=str(scene_file), robot=str(folder / ROBOT))
+    kwargs = task_section["env_kwargs"]
+    env = TaskEnv(task, obs=kwargs.get("obs"), action=kwargs.get("action"))
+    check_env_matches(env, contract)
+    return env
+
+
+def check_env_matches(env: TaskEnv, contract: dict[str, Any]) -> None:
+    """The environment has the contract's joints, control period, observation, goal and action.
+
+    Raises:
+        ContractError: one line naming what differs and what the contract says.
+    """
+    robot, task = contract["robot"], contract["task"]
+    expected: list[tuple[str, Any, Any]] = [
+        ("robot.joints", list(env.robot.joints), robot["joints"]),
+        ("task.control_period_s", env.task.control_dt, task["control_period_s"]),
+        ("observation.spec", env.obs_map.spec, contract["observation"]["spec"]),
+        ("observation.dim", env.obs_map.dim, contract["observation"]["dim"]),
+        ("goal.dim", env.goal.dim, contract["goal"]["dim"]),
+        ("action.dim", env.action_map.dim, contract["action"]["dim"]),
+    ]
+    for key, actual, wanted in expected:
+        if actual != wanted and not (isinstance(actual, float) and math.isclose(actual, wanted)):
+            raise ContractError(
+                f"contract.json: {key} is {wanted!r}, but the exported task builds {actual!r}"
+            )
+
+
+def model_bytes(model: mujoco.MjModel) -> bytes:
+    """A compiled model as MJB bytes (two models compiled from the same inputs give the same bytes)."""
+    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
