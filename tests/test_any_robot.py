@@ -17,7 +17,10 @@ from tsrl.kinematics import (
     joint_limits,
     random_configurations,
 )
-from tsrl.robots import Robot
+from tsrl.robot_model import prepare_spec
+from tsrl.robots import HOME_KEY, Robot
+from tsrl.servos import servo_name
+from tsrl.settling import settle
 from tsrl.taskmaps import parse_spec
 
 #: Four hinges about y, links along z: the tool moves in the x-z plane (2 task dimensions, 4 joints).
@@ -272,3 +275,19 @@ def test_robot_from_the_model(arm):
         Robot.from_model(arm, tcp="tool", joints=("j1", "elbow"))
     with pytest.raises(InvalidConfig, match="actuator 'a2' does not drive joint 'j1'"):
         Robot.from_model(arm, tcp="tool", joints=("j1", "j2"), actuators=("a2", "a1"))
+
+
+def test_the_arm_without_its_servos_gets_them_and_settles_in_its_plane():
+    """The same arm with its actuators and keyframe removed: tsrl adds a servo per joint (home given as
+    joint values) and a 5 cm step settles in x and z; y, out of the arm's plane, is skipped."""
+    bare = PLANAR_ARM.split("  <actuator>")[0] + "</mujoco>"
+    spec = mujoco.MjSpec.from_string(bare)
+    robot = Robot(name="planar4", model="planar4.xml", joints=JOINTS, tcp="tool", home=tuple(REST))
+    arm = prepare_spec(spec, robot, "planar4.toml")
+    model = spec.compile()
+    assert arm.servos == tuple(servo_name(j) for j in JOINTS) and model.nu == 4
+    result = settle(model, JOINTS, "tool", REST, model.key(HOME_KEY).id)
+    assert result.ok, result.summary()
+    assert [r.direction for r in result.responses] == ["+x", "+z", "-x", "-z"]
+    assert result.skipped == ("+y", "-y") and "+y, -y skipped" in result.summary()
+    np.testing.assert_array_equal(model.key_qpos[model.key(HOME_KEY).id][7:], REST)  # after the ball

@@ -12,7 +12,7 @@ import numpy as np
 
 from .exceptions import InvalidConfig
 from .ik import DlsSolver, IKOptions
-from .kinematics import arm_qpos_indices
+from .kinematics import arm_dof_indices, arm_qpos_indices
 from .servos import servos_on
 from .taskmaps import Frame, Position, resolve_frame
 
@@ -50,13 +50,20 @@ class StepResponse:
 
 @dataclass(frozen=True)
 class Settling:
-    """Step responses in the six axis directions from home."""
+    """Step responses in the six axis directions from home (those the TCP can move in).
+
+    Attributes:
+        responses: one per direction stepped.
+        skipped: directions the TCP cannot move in at home (outside the span of its position
+            Jacobian: a planar arm's out-of-plane axis).
+    """
 
     responses: tuple[StepResponse, ...]
+    skipped: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
-        return all(r.ok for r in self.responses)
+        return bool(self.responses) and all(r.ok for r in self.responses)
 
     @property
     def worst(self) -> StepResponse:
@@ -65,12 +72,15 @@ class Settling:
 
     def summary(self) -> str:
         """One line: whether the target holds and the worst response."""
+        if not self.responses:
+            return "misses the settling target: the TCP cannot move along any axis at home"
         w = self.worst
         verdict = "meets" if self.ok else "misses"
+        skipped = f"; {', '.join(self.skipped)} skipped (the TCP cannot move so)" if self.skipped else ""
         return (
             f"{verdict} the settling target ({STEP * 100:g} cm TCP step within {TOLERANCE * 1e3:g} mm after "
             f"{PERIODS} x {CONTROL_DT * 1e3:g} ms): worst {w.direction}: {w.worst_after * 1e3:.3f} mm, "
-            f"overshoot {w.overshoot * 1e3:.2f} mm, {w.warnings} physics warnings"
+            f"overshoot {w.overshoot * 1e3:.2f} mm, {w.warnings} physics warnings{skipped}"
         )
 
 
@@ -87,7 +97,8 @@ def settle(
 
     The commanded point's joint targets come from tsrl's IK (a local solve of position(tcp) from home,
     with the null-space posture at home on a redundant arm); the servos get them at t = 0 and the
-    physics runs WATCHED control periods (the other actuators as the keyframe sets them).
+    physics runs WATCHED control periods (the other actuators as the keyframe sets them). A direction
+    the TCP cannot move in at home (outside the span of its position Jacobian) is skipped.
 
     Raises:
         InvalidConfig: a joint without a position servo, or a commanded point the IK cannot reach.
@@ -105,8 +116,12 @@ def settle(
     )
     data = mujoco.MjData(model)
     steps_per_period = round(CONTROL_DT / model.opt.timestep)
-    responses = []
+    responses, skipped = [], []
+    span = _position_span(model, data, key, qpos, ctrl, home_q, frame, joints)
     for axis, direction in zip(_AXES, directions, strict=False):
+        if np.linalg.norm(span @ direction) < 0.99:
+            skipped.append(axis)
+            continue
         _rest_at(model, data, key, qpos, ctrl, home_q)
         goal = _position(data, frame) + STEP * np.asarray(direction)
         ik_data = mujoco.MjData(model)
@@ -134,7 +149,28 @@ def settle(
                 int(data.warning.number.sum()) - warnings_before,
             )
         )
-    return Settling(tuple(responses))
+    return Settling(tuple(responses), tuple(skipped))
+
+
+def _position_span(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    key: int | None,
+    qpos: np.ndarray,
+    ctrl: np.ndarray,
+    home_q: np.ndarray,
+    frame: Frame,
+    joints: Sequence[str],
+) -> np.ndarray:
+    """The projector (3, 3) onto the directions the joints can move the TCP in at home: J J^+."""
+    _rest_at(model, data, key, qpos, ctrl, home_q)
+    jac = np.zeros((3, model.nv))
+    if frame.kind == "site":
+        mujoco.mj_jacSite(model, data, jac, None, frame.id)
+    else:
+        mujoco.mj_jacBody(model, data, jac, None, frame.id)
+    J = jac[:, arm_dof_indices(model, joints)]
+    return J @ np.linalg.pinv(J, rcond=1e-6)
 
 
 def _rest_at(
