@@ -28,6 +28,7 @@ from ..taskmaps import Stack
 from .actions import ActionMap, action_mode
 from .goals import Goal
 from .observations import OBS_PRESETS, StepPlan
+from .perturbations import Perturber
 from .randomization import Randomizer
 from .scenes import load_scene
 from .tasks import Task, load_task
@@ -133,6 +134,11 @@ class TaskEnv(gym.Env, EzPickle):
         self.plan = StepPlan(self.model, self.obs_spec, self.goal, self.action_map.ik_map, self.robot.joints)
         self.goal.check_relabelable(self.plan.obs_map)
         self.randomizer = Randomizer(self.model, task, self.bound_robot, self.goal)
+        self._perturb = (
+            Perturber(self.model, task, self.bound_robot, self.goal, self.plan.obs_map, self.n_substeps)
+            if task.randomize.active
+            else None
+        )
         ik_map = self.action_map.ik_map
         ik_options = IKOptions(max_iters=self.ik_iterations, restarts=0, posture=self.bound_robot.posture)
         self._ik = DlsSolver(self.model, ik_map, self.robot.joints, ik_options) if ik_map else None
@@ -179,30 +185,44 @@ class TaskEnv(gym.Env, EzPickle):
         super().reset(seed=seed)
         self.bound_robot.reset_to_home(self.model, self.data)
         self.randomizer.randomize(self.data, self.np_random)
+        if self._perturb is not None:
+            self._perturb.episode(self.data, self.np_random, self.action_map.dim)
+            self._perturb.draw_noise(self.np_random)
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
         self._steps = 0
         obs = self._observation()
         _, info = self.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
-        return obs, info | {"ik_error": 0.0}
+        info["ik_error"] = 0.0
+        if self._perturb is not None and self._perturb.spec.goal_offset > 0:
+            info |= self._perturb.true_info(obs["achieved_goal"], obs["desired_goal"])
+        return obs, info
 
     def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         a = _checked_action(action, self._action_shape, self._action_low, self._action_high)
+        perturb = self._perturb
+        if perturb is not None:
+            a = perturb.delayed(a)
         q_target, ik_error = self._joint_targets(a)
         self._ctrl[self.bound_robot.ctrl] = q_target
         if self._suction_ctrl is not None:
             self._ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
         warnings_before = self._instability_count()
-        mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+        substeps = self.n_substeps if perturb is None else perturb.substeps(self.np_random)
+        mujoco.mj_step(self.model, self.data, nstep=substeps)
         self._steps += 1
         # MuJoCo warns and resets the state when a non-finite or huge qpos/qvel/qacc appears: the step
         # then ends the episode (truncated) with the last observation, its reward and info.
         unstable = self._instability_count() > warnings_before
         if not unstable:
             self.plan.evaluate(self.model, self.data)
+        if perturb is not None:
+            perturb.draw_noise(self.np_random)
         obs = self._observation()
         reward, info = self.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
         info["ik_error"] = float(ik_error)
+        if perturb is not None and perturb.spec.goal_offset > 0:
+            info |= perturb.true_info(obs["achieved_goal"], obs["desired_goal"])
         if unstable:
             info["physics_unstable"] = True
             return obs, reward, False, True, info
@@ -264,10 +284,12 @@ class TaskEnv(gym.Env, EzPickle):
 
     # -- internals ---------------------------------------------------------------------------------
     def _observation(self) -> dict[str, np.ndarray]:
-        """Fresh copies of the last evaluation's observation and goals."""
+        """Fresh copies of the last evaluation's observation (with this step's noise) and goals."""
         observation, achieved, desired = self.plan.views
         return {
-            "observation": observation.copy(),
+            "observation": observation + self._perturb.noise
+            if self._perturb is not None
+            else observation.copy(),
             "achieved_goal": achieved.copy(),
             "desired_goal": desired.copy(),
         }

@@ -225,6 +225,10 @@ class Goal:
         if quat is not None:
             data.mocap_quat[mocap] = quat
 
+    def marker_mocap(self, part: int) -> int:
+        """The mocap index of part `part`'s marker (data.mocap_pos row)."""
+        return self._mocap[part]
+
     def place(self, data: mujoco.MjData, goal: np.ndarray) -> None:
         """Puts every marker at its part of the goal vector `goal` (g,) (no kinematics)."""
         for i, part in enumerate(self.parts):

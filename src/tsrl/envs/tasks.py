@@ -165,6 +165,60 @@ class ObstacleSampler:
 
 
 @dataclass(frozen=True)
+class Randomize:
+    """Perturbations of the world, drawn per episode from the env's seeded generator (docs/tasks.md).
+
+    Scales are uniform in [low, high] (1 = nominal); magnitudes 0 = off. The defaults change nothing:
+    a task without `[randomize]` is today's task bit for bit.
+
+    Attributes:
+        object_mass, object_size, object_friction: scales of each object's body mass and inertia, its
+            geoms' sizes (the object is placed higher by the growth of its half-height) and sliding
+            friction.
+        servo_gain: scale of the arm servos' stiffness and damping gains (kp, kv).
+        joint_damping: passive damping [N m s/rad, or N s/m] added to each arm joint, uniform in
+            [low, high] (the built-in arms have none; their servos damp).
+        tcp_offset: the TCP frame moved by uniform(-x, x) [m] per axis in its body (a calibration error).
+        observation_noise: standard deviation of Gaussian noise added to every observation row, in
+            the row's units (m, m/s, unitless axis components, ...), drawn every step; rows that read
+            a goal marker's orientation carry none (HER replaces them exactly).
+        action_latency: each episode's actions act k control periods late, k uniform in 0..this
+            (the first k steps hold the arm: zero action).
+        control_jitter: each step's physics substeps vary by uniform +-round(this x substeps).
+        goal_offset: the goal markers the policy sees are moved by uniform(-x, x) [m] per axis per
+            episode from the true goal (a perception error); info["true_distance"] and
+            info["true_success"] measure against the true goal.
+    """
+
+    object_mass: tuple[float, float] = (1.0, 1.0)
+    object_size: tuple[float, float] = (1.0, 1.0)
+    object_friction: tuple[float, float] = (1.0, 1.0)
+    servo_gain: tuple[float, float] = (1.0, 1.0)
+    joint_damping: tuple[float, float] = (0.0, 0.0)
+    tcp_offset: float = 0.0
+    observation_noise: float = 0.0
+    action_latency: int = 0
+    control_jitter: float = 0.0
+    goal_offset: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        """Whether anything is perturbed."""
+        return self != Randomize()
+
+
+#: Randomize's scale keys, and its magnitude keys with their largest accepted values.
+RANDOMIZE_SCALES = ("object_mass", "object_size", "object_friction", "servo_gain")
+RANDOMIZE_MAGNITUDES = {
+    "tcp_offset": 0.05,
+    "observation_noise": 0.1,
+    "action_latency": None,  # at most the episode's length less one
+    "control_jitter": 0.5,
+    "goal_offset": 0.1,
+}
+
+
+@dataclass(frozen=True)
 class Task:
     """A task: the paper's MDP as data (docs/tasks.md).
 
@@ -183,6 +237,7 @@ class Task:
         start_noise: uniform noise [rad] added to each arm joint of the home pose at reset (0: none).
         episode_steps: control steps per episode.
         control_dt: control period [s] (a multiple of the scene's physics timestep).
+        randomize: perturbations of the world per episode (none by default).
         description: one line shown in listings.
     """
 
@@ -198,6 +253,7 @@ class Task:
     start_noise: float = 0.0
     episode_steps: int = 50
     control_dt: float = 0.04
+    randomize: Randomize = field(default_factory=Randomize)
     description: str = ""
     #: The file the task was loaded from (scene paths are relative to it); None for tasks in code.
     source: Path | None = field(default=None, compare=False)
@@ -281,6 +337,7 @@ def load_task(task: Task | str | Path) -> Task:
 
 # -- validation without a model ----------------------------------------------------------------------
 def _validate(task: Task) -> None:
+    _validate_randomize(task.randomize, task.episode_steps)
     if task.robot not in ROBOTS and not task.robot.endswith(".toml"):
         raise InvalidConfig(f"robot = {task.robot!r}; accepted: {', '.join(ROBOTS)} or a robot .toml file")
     if isinstance(task.action, str) and task.action not in ACTION_PRESETS:
@@ -324,6 +381,21 @@ def _validate(task: Task) -> None:
         )
 
 
+def _validate_randomize(r: Randomize, episode_steps: int) -> None:
+    for key in RANDOMIZE_SCALES:
+        low, high = getattr(r, key)
+        if not 0 < low <= high:
+            raise InvalidConfig(f"randomize.{key} = [{low:g}, {high:g}]; accepted: scales 0 < low <= high")
+    low, high = r.joint_damping
+    if not 0 <= low <= high:
+        raise InvalidConfig(f"randomize.joint_damping = [{low:g}, {high:g}]; accepted: 0 <= low <= high")
+    for key, most in RANDOMIZE_MAGNITUDES.items():
+        value = getattr(r, key)
+        most = episode_steps - 1 if most is None else most
+        if not 0 <= value <= most:
+            raise InvalidConfig(f"randomize.{key} = {value:g}; accepted: 0 to {most:g}")
+
+
 def _goal_within(task: Task, low: tuple[float, ...], high: tuple[float, ...]) -> None:
     """Goal positions must lie within the bounds of the TCP position target (else they cannot be reached)."""
     if not task.goal.map.startswith("position(tcp)"):
@@ -352,6 +424,7 @@ __all__ = (
     "OrientationSampler",
     "Penalty",
     "PositionSampler",
+    "Randomize",
     "SuccessSpec",
     "Task",
     "builtin_task_path",
