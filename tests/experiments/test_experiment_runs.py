@@ -22,7 +22,7 @@ import pytest
 from cli_runner import run_tsrl
 
 from tsrl.agents.demo_files import load_demos, sha256
-from tsrl.agents.run_folder import latest_checkpoint, read_state
+from tsrl.agents.run_folder import check_not_locked, latest_checkpoint, read_state
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import Comparison, load_experiment
 from tsrl.experiments.pool import run_experiment
@@ -196,6 +196,73 @@ def test_experiment_on_a_local_ray_instance(tmp_path):
     assert progress(exp_dir / "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0") == EXPECTED_ROWS
     assert "1/1 runs: 1 trained" in result.stderr
     assert (exp_dir / "summary.md").is_file() and "wrote" in result.stdout
+
+
+#: One worker, two runs (the second waits), budgets no test reaches: a Ctrl-C always finds the first run
+#: training and the second not started.
+LONG = """
+obs = ["fs1"]
+seeds = [0, 1]
+total_timesteps = 1000000
+eval_freq = 100
+eval_episodes = 2
+checkpoint_freq = 100000
+
+[agent]
+learning_starts = 100
+gradient_steps = 10
+batch_size = 64
+buffer_size = 2000
+"""
+
+
+def _start_long_experiment(tmp_path: Path, agent: str = "") -> tuple[subprocess.Popen, list[Path]]:
+    """`tsrl experiment` of LONG (plus `agent` settings) on one worker, once its first run has written
+    its step-0 evaluation (inside training, whose signal handlers are then installed)."""
+    definition = tmp_path / "long.toml"
+    definition.write_text(LONG + agent)
+    run_dirs = [tmp_path / "results" / "long" / c.run_name for c in load_experiment(definition).runs()]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
+         "--workers", "1", "--no-report"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 180
+    while not ((run_dirs[0] / "progress.csv").is_file() and progress(run_dirs[0])):
+        assert proc.poll() is None and time.monotonic() < deadline, "the first run never evaluated"
+        time.sleep(0.05)
+    return proc, run_dirs
+
+
+def test_a_ctrl_c_asks_the_running_runs_to_checkpoint_and_starts_no_other(tmp_path):
+    proc, (first, second) = _start_long_experiment(tmp_path)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=180)
+    lines = stderr.splitlines()
+    assert proc.returncode == 128 + signal.SIGINT, stderr
+    assert (
+        "stopping: 1 running run(s) save a checkpoint and stop; 1 not started; Ctrl-C again to stop at once"
+        in lines
+    )
+    (done,) = [line for line in lines if line.startswith("[1/2] interrupted")]
+    assert first.name in done and "SIGTERM: stopped at" in done and "checkpoint saved" in done
+    assert checkpoint_at(first) > 0 and not second.exists()
+    assert "0 failed, 1 interrupted, 1 not started" in stderr
+    assert lines[-1] == "tsrl experiment: interrupted; run it again to resume"
+
+
+def test_a_second_ctrl_c_ends_the_running_runs_at_once(tmp_path):
+    # Updates every 10,000 episodes: after the first Ctrl-C the run's next safe point is far away.
+    proc, (first, second) = _start_long_experiment(tmp_path, "train_freq_episodes = 10000\n")
+    proc.send_signal(signal.SIGINT)
+    while not proc.stderr.readline().startswith("stopping: 1 running run(s)"):
+        assert proc.poll() is None
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT, stderr
+    assert stderr.splitlines()[-1] == "tsrl experiment: interrupted; run it again to resume"
+    assert checkpoint_at(first) == 0 and not second.exists()
+    check_not_locked(first)  # its worker is gone: the run folder's lock is free
 
 
 @pytest.mark.parametrize(

@@ -2,14 +2,18 @@
 
 Local: `workers` spawned processes (default: one per available core), each with one torch thread,
 each running one run at a time. A run that crashes its process (segfault, out of memory) is reported
-as failed, the process replaced, and the others go on. Ctrl-C (or SIGTERM) stops launching runs and
-asks the running ones to checkpoint and stop; a second Ctrl-C stops at once. Ray (`pip install
-'tsrl[ray]'`): one task per run with one CPU, on the cluster at `address` or on a local instance
-(`"local"`); the results folder must be on a file system every node sees at the same path.
+as failed, the process replaced, and the others go on. Ray (`pip install 'tsrl[ray]'`): one task per
+run with one CPU, on the cluster at `address` or on a local instance (`"local"`); the results folder
+must be on a file system every node sees at the same path.
+
+Both are backends of one scheduler (`_schedule`), which alone decides when runs start and how they
+stop: Ctrl-C (or SIGTERM) stops launching runs and asks the running ones to checkpoint and stop; a
+second one ends them at once.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import multiprocessing as mp
@@ -19,16 +23,17 @@ import signal
 import sys
 import time
 from collections import deque
+from collections.abc import Iterator
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Protocol, TextIO
 
 from ..agents.config import TrainConfig
 from ..agents.run_folder import read_progress
 from ..exceptions import InvalidConfig
 from ..files import write_atomic
 from ..signals import in_main_thread
-from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, config_labels
+from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, Key, config_labels
 from .runner import ERROR_FILE, RunOutcome, run_one, run_state
 
 #: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
@@ -70,10 +75,13 @@ def run_experiment(
                 todo.append(cfg)
         if exp.demos is not None:
             record_missing_demos(exp.demos, todo, display)
-        if todo and ray_address is None:
-            _run_local(todo, exp_dir, workers or len(os.sched_getaffinity(0)), display, outcomes)
-        elif todo:
-            _run_ray(todo, exp_dir, ray_address, workers, display, outcomes)
+        if todo:
+            backend: _Backend = (
+                _LocalPool(exp_dir, min(workers or len(os.sched_getaffinity(0)), len(todo)))
+                if ray_address is None
+                else _RayPool(exp_dir, ray_address, workers)
+            )
+            _schedule(todo, backend, display, outcomes)
     finally:
         display.close()
     return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
@@ -99,16 +107,111 @@ def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: P
         display.message(summary_line(demos, save_demos(demos, path)))
 
 
+# -- the one scheduler and its stop logic --------------------------------------------------------------
+class _Stop(Exception):
+    """SIGTERM in the parent: handled as Ctrl-C."""
+
+
+class _Backend(Protocol):
+    """Where runs execute (local worker processes or Ray tasks). It starts, waits for, asks to stop and
+    kills runs; what starts when, and when to stop, is `_schedule`'s alone."""
+
+    def free(self) -> bool:
+        """Whether a run can start now."""
+
+    def start(self, cfg: TrainConfig) -> None:
+        """Starts the run of `cfg`."""
+
+    def running(self) -> list[TrainConfig]:
+        """The runs started and not yet reported."""
+
+    def wait(self, timeout: float, stopping: bool) -> list[RunOutcome]:
+        """The outcomes of the runs that end within `timeout` seconds (`stopping`: a stop was asked
+        for, so a run that ends without reporting was stopped, not failed)."""
+
+    def release_idle(self) -> None:
+        """Releases what has no run after the starts (local: idle workers exit)."""
+
+    def stop(self) -> None:
+        """Asks every running run to save a checkpoint and stop."""
+
+    def kill(self) -> None:
+        """Ends every running run at once, without a checkpoint."""
+
+    def close(self) -> None:
+        """Releases the backend (after the last outcome, or on the way out of an error)."""
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM raises _Stop in the main thread for the block (Ctrl-C raises KeyboardInterrupt anyway)."""
+
+    def on_sigterm(signum: int, frame: object) -> None:
+        raise _Stop
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _schedule(
+    todo: list[TrainConfig], backend: _Backend, display: Progress, outcomes: dict[str, RunOutcome]
+) -> None:
+    """Runs `todo` on `backend`, a run whenever it has room, and stops the same way on both backends:
+
+    - the first Ctrl-C (or SIGTERM) starts no new run and asks the running ones to save a checkpoint
+      and stop; the loop then collects their outcomes ("interrupted", resumable);
+    - a run that ends interrupted (its worker was signalled directly) also starts no new run;
+    - a second Ctrl-C (or SIGTERM) kills the running runs and raises KeyboardInterrupt;
+    - a failed run stops nothing: the others go on.
+
+    Runs that never started are reported interrupted ("not started").
+    """
+    pending = deque(todo)
+    stopping = False
+    with _sigterm_as_interrupt():
+        try:
+            while True:
+                try:
+                    while pending and not stopping and backend.free():
+                        cfg = pending.popleft()
+                        backend.start(cfg)
+                        display.started(cfg)
+                    backend.release_idle()
+                    if not backend.running():
+                        break
+                    for outcome in backend.wait(display.refresh_s, stopping):
+                        outcomes[outcome.run_name] = outcome
+                        display.finished(outcome)
+                        if outcome.status == "interrupted" and not stopping:
+                            stopping = True
+                            display.message("a run was interrupted: no new runs start")
+                    display.refresh(backend.running())
+                except (KeyboardInterrupt, _Stop):
+                    if stopping:
+                        backend.kill()
+                        raise KeyboardInterrupt from None
+                    stopping = True
+                    display.message(
+                        f"stopping: {len(backend.running())} running run(s) save a checkpoint and stop; "
+                        f"{len(pending)} not started; Ctrl-C again to stop at once"
+                    )
+                    backend.stop()
+        finally:
+            backend.close()
+    for cfg in pending:
+        outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+
+
 # -- local process pool ----------------------------------------------------------------------------
 def _worker(conn: Connection) -> None:
     """A spawned worker process: runs the (config, experiment dir) it receives until it gets None."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # training handles SIGINT itself while it runs
     while (task := conn.recv()) is not None:
         conn.send(run_one(*task))
-
-
-class _Stop(Exception):
-    """SIGTERM in the parent: handled as Ctrl-C."""
 
 
 class _Worker:
@@ -136,66 +239,60 @@ class _Worker:
         self.cfg, self.t0 = cfg, time.monotonic()
 
 
-def _run_local(
-    todo: list[TrainConfig], exp_dir: Path, workers: int, display: Progress, outcomes: dict[str, RunOutcome]
-) -> None:
-    """Persistent worker processes (torch's import costs seconds), one run at a time each; a worker
-    that dies is replaced and its run reported as failed."""
-    ctx = mp.get_context("spawn")
-    pending = deque(todo)
-    pool = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
-    stopping = False
+class _LocalPool:
+    """Up to `size` persistent worker processes (torch's import costs seconds), one run at a time
+    each; a worker that dies is reported with its run and replaced at the next start."""
 
-    def on_sigterm(signum: int, frame: object) -> None:
-        raise _Stop
+    def __init__(self, exp_dir: Path, size: int):
+        self.exp_dir, self.size = exp_dir, size
+        self.ctx = mp.get_context("spawn")
+        self.workers: list[_Worker] = []
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
-    try:
-        while pool:
-            try:
-                for w in pool:
-                    if w.cfg is None and pending and not stopping:
-                        cfg = pending.popleft()
-                        w.give(cfg, exp_dir)
-                        display.started(cfg)
-                for w in [w for w in pool if w.cfg is None]:
-                    w.conn.send(None)  # nothing left for it
-                    w.conn.close()
-                    pool.remove(w)
-                ready = set(wait([w.conn for w in pool] + [w.proc.sentinel for w in pool], display.refresh_s))
-                for w in list(pool):
-                    if w.conn in ready or w.proc.sentinel in ready:
-                        outcome = _collect(w, exp_dir, stopping)
-                        outcomes[outcome.run_name] = outcome
-                        display.finished(outcome)
-                        if outcome.status == "interrupted" and not stopping:  # signalled directly
-                            stopping = True
-                            display.message("a run was interrupted: no new runs start")
-                        w.cfg = None
-                        if not w.proc.is_alive():
-                            pool.remove(w)
-                            if pending and not stopping:
-                                pool.append(_Worker(ctx))
-                display.refresh([w.cfg for w in pool if w.cfg is not None])
-            except (KeyboardInterrupt, _Stop):
-                if stopping:  # second interrupt: stop now
-                    for w in pool:
-                        w.proc.kill()
-                    raise KeyboardInterrupt from None
-                stopping = True
-                busy = [w for w in pool if w.cfg is not None]
-                display.message(
-                    f"stopping: {len(busy)} running run(s) save a checkpoint and stop; "
-                    f"{len(pending)} not started; Ctrl-C again to stop at once"
-                )
-                for w in busy:
-                    if w.proc.pid is not None:
-                        os.kill(w.proc.pid, signal.SIGTERM)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-    for cfg in pending:
-        outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+    def free(self) -> bool:
+        return len(self.running()) < self.size
+
+    def start(self, cfg: TrainConfig) -> None:
+        idle = [w for w in self.workers if w.cfg is None]
+        worker = idle[0] if idle else _Worker(self.ctx)
+        if not idle:
+            self.workers.append(worker)
+        worker.give(cfg, self.exp_dir)
+
+    def running(self) -> list[TrainConfig]:
+        return [w.cfg for w in self.workers if w.cfg is not None]
+
+    def wait(self, timeout: float, stopping: bool) -> list[RunOutcome]:
+        busy = [w for w in self.workers if w.cfg is not None]
+        ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout))
+        out = []
+        for w in busy:
+            if w.conn in ready or w.proc.sentinel in ready:
+                out.append(_collect(w, self.exp_dir, stopping))
+                w.cfg = None
+                if not w.proc.is_alive():
+                    self.workers.remove(w)
+        return out
+
+    def release_idle(self) -> None:
+        for w in [w for w in self.workers if w.cfg is None]:
+            w.conn.send(None)  # nothing left for it
+            w.conn.close()
+            self.workers.remove(w)
+
+    def stop(self) -> None:
+        for w in self.workers:
+            if w.cfg is not None and w.proc.pid is not None:
+                os.kill(w.proc.pid, signal.SIGTERM)  # training saves a checkpoint and stops
+
+    def kill(self) -> None:
+        for w in self.workers:
+            w.proc.kill()
+        for w in self.workers:
+            w.proc.join()  # gone when this returns: no run outlives the pool
+
+    def close(self) -> None:
+        self.kill()  # none is left after the last outcome; on an error none outlives the pool
+        self.workers.clear()
 
 
 def _collect(w: _Worker, exp_dir: Path, stopping: bool) -> RunOutcome:
@@ -226,86 +323,72 @@ def _ray_run(cfg: TrainConfig, exp_dir: str) -> RunOutcome:
     return run_one(cfg, exp_dir)
 
 
-def _run_ray(
-    todo: list[TrainConfig],
-    exp_dir: Path,
-    address: str,
-    workers: int | None,
-    display: Progress,
-    outcomes: dict[str, RunOutcome],
-) -> None:
-    try:
-        import ray
-    except ImportError:
-        raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'") from None
+class _RayPool:
+    """One Ray task (one CPU) per run, at most `workers` (default: the cluster's CPUs) at a time, on
+    the cluster at `address` or a local instance ("local"), which is shut down on close."""
 
-    started_here = not ray.is_initialized()
-    if started_here:
-        kwargs: dict[str, object] = {"log_to_driver": False}
-        if address == "local":
-            kwargs.update(address="local", include_dashboard=False, num_cpus=workers)
-        else:
-            kwargs["address"] = address
+    def __init__(self, exp_dir: Path, address: str, workers: int | None):
         try:
-            ray.init(**kwargs)
-        except (ConnectionError, ValueError, RuntimeError) as err:
-            raise InvalidConfig(f"cannot connect to Ray at {address!r}: {err}".splitlines()[0]) from None
-    slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-    task = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
-    pending = deque(todo)
-    running: dict[Any, tuple[TrainConfig, float]] = {}
-    stopping = False
-
-    def on_sigterm(signum: int, frame: object) -> None:
-        raise _Stop
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
-    try:
-        while pending or running:
+            import ray
+        except ImportError:
+            raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'") from None
+        self.ray = ray
+        self.started_here = not ray.is_initialized()
+        if self.started_here:
             try:
-                while pending and not stopping and len(running) < slots:
-                    cfg = pending.popleft()
-                    running[task.remote(cfg, str(exp_dir.resolve()))] = (cfg, time.monotonic())
-                    display.started(cfg)
-                if not running:
-                    break
-                done, _ = ray.wait(list(running), num_returns=1, timeout=display.refresh_s)
-                for ref in done:
-                    cfg, t0 = running.pop(ref)
-                    try:
-                        outcome = ray.get(ref)
-                    except ray.exceptions.TaskCancelledError:
-                        outcome = RunOutcome(
-                            cfg.run_name, "interrupted", 0, time.monotonic() - t0, error="cancelled"
-                        )
-                    except ray.exceptions.RayError as err:
-                        error = f"Ray task failed: {err}".splitlines()[0]
-                        (exp_dir / cfg.run_name).mkdir(parents=True, exist_ok=True)
-                        (exp_dir / cfg.run_name / ERROR_FILE).write_text(str(err) + "\n")
-                        outcome = RunOutcome(cfg.run_name, "failed", 0, time.monotonic() - t0, error=error)
-                    outcomes[cfg.run_name] = outcome
-                    display.finished(outcome)
-                    stopping = stopping or outcome.status == "interrupted"  # a worker got a signal
-                display.refresh([cfg for cfg, _ in running.values()])
-            except (KeyboardInterrupt, _Stop):
-                if stopping:  # second interrupt: stop now
-                    for ref in running:
-                        ray.cancel(ref, force=True)
-                    raise KeyboardInterrupt from None
-                stopping = True
-                display.message(
-                    f"stopping: {len(running)} running run(s) save a checkpoint and stop; "
-                    f"{len(pending)} not started; Ctrl-C again to stop at once"
+                if address == "local":
+                    ray.init(address="local", include_dashboard=False, num_cpus=workers, log_to_driver=False)
+                else:
+                    ray.init(address=address, log_to_driver=False)
+            except (ConnectionError, ValueError, RuntimeError) as err:
+                raise InvalidConfig(f"cannot connect to Ray at {address!r}: {err}".splitlines()[0]) from None
+        self.exp_dir = exp_dir
+        self.slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+        self.task = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
+        self.refs: dict[Any, tuple[TrainConfig, float]] = {}
+
+    def free(self) -> bool:
+        return len(self.refs) < self.slots
+
+    def start(self, cfg: TrainConfig) -> None:
+        self.refs[self.task.remote(cfg, str(self.exp_dir.resolve()))] = (cfg, time.monotonic())
+
+    def running(self) -> list[TrainConfig]:
+        return [cfg for cfg, _ in self.refs.values()]
+
+    def wait(self, timeout: float, stopping: bool) -> list[RunOutcome]:
+        ray = self.ray
+        done, _ = ray.wait(list(self.refs), num_returns=1, timeout=timeout)
+        out = []
+        for ref in done:
+            cfg, t0 = self.refs.pop(ref)
+            try:
+                out.append(ray.get(ref))
+            except ray.exceptions.TaskCancelledError:
+                out.append(
+                    RunOutcome(cfg.run_name, "interrupted", 0, time.monotonic() - t0, error="cancelled")
                 )
-                for ref in running:
-                    ray.cancel(ref)  # KeyboardInterrupt in the task: training checkpoints and stops
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-        if started_here:
-            ray.shutdown()
-    for cfg in pending:
-        outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+            except ray.exceptions.RayError as err:
+                error = f"Ray task failed: {err}".splitlines()[0]
+                (self.exp_dir / cfg.run_name).mkdir(parents=True, exist_ok=True)
+                (self.exp_dir / cfg.run_name / ERROR_FILE).write_text(str(err) + "\n")
+                out.append(RunOutcome(cfg.run_name, "failed", 0, time.monotonic() - t0, error=error))
+        return out
+
+    def release_idle(self) -> None:
+        pass  # Ray's workers are Ray's
+
+    def stop(self) -> None:
+        for ref in self.refs:
+            self.ray.cancel(ref)  # KeyboardInterrupt in the task: training checkpoints and stops
+
+    def kill(self) -> None:
+        for ref in self.refs:
+            self.ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self.started_here:
+            self.ray.shutdown()
 
 
 # -- progress display ------------------------------------------------------------------------------
@@ -317,7 +400,7 @@ class Progress:
 
     def __init__(self, runs: list[TrainConfig], exp_dir: Path, stream: TextIO):
         self.total = len(runs)
-        keys = [(c.env_id, c.obs, c.action, c.agent.algo, "") for c in runs]
+        keys: list[Key] = [(c.env_id, c.obs, c.action, c.agent.algo, "") for c in runs]
         self.labels = {c.run_name: f"{k} s{c.seed}" for c, k in zip(runs, config_labels(keys), strict=True)}
         self.exp_dir = exp_dir
         self.stream = stream
