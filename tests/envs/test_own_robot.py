@@ -239,3 +239,34 @@ def test_fetch_reach_passes_the_checkers_meets_the_settling_target_and_is_solved
     assert np.linalg.norm(obs["achieved_goal"] - start) < 1e-3
     assert solve_episodes(env, range(5)) == 5
     assert math.isclose(u.task.control_dt, 0.04)
+
+
+def test_a_model_inside_an_installed_package_is_named_with_pkg(task_file):
+    """tsrl is itself an installed package: its UR5e file by pkg://, from a robot file and a task's scene."""
+    folder = task_file.parent
+    (folder / "ur5e.toml").write_text(
+        'name = "ur5e_pkg"\nmodel = "pkg://tsrl/assets/ur5e/ur5e.xml"\n'
+        'joints = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]\n'
+        'tcp = "tcp"\nhome = "home"\n'
+    )
+    text = TASK_TOML.replace('robot = "arm.toml"', 'robot = "ur5e.toml"')
+    text = text.replace('scene = "arm.xml"', 'scene = "pkg://tsrl/assets/scenes/reach.xml"')
+    text = text.replace("(tool", "(tcp").replace("center = [0.6, 0.0, 0.3]", "center = [-0.49, -0.13, 0.42]")
+    task_file.write_text(text)
+    env = gym.make(TASK_ENV_ID, task=str(task_file), max_episode_steps=30)
+    assert env.unwrapped.robot.model == "pkg://tsrl/assets/ur5e/ur5e.xml"
+    assert solve_episodes(env, range(3)) == 3
+    task_file.write_text(
+        text.replace("pkg://tsrl/assets/scenes/reach.xml", "pkg://no_such_package/reach.xml")
+    )
+    with pytest.raises(tsrl.TsrlError) as err:
+        gym.make(TASK_ENV_ID, task=str(task_file))
+    assert str(err.value) == (
+        f"{task_file}: scene = 'pkg://no_such_package/reach.xml': no installed package 'no_such_package' "
+        "(pip install it first)"
+    )
+    task_file.write_text(text.replace("scenes/reach.xml", "scenes/nope.xml"))
+    with pytest.raises(
+        tsrl.TsrlError, match="scene = 'pkg://tsrl/assets/scenes/nope.xml': package 'tsrl' has no file"
+    ):
+        gym.make(TASK_ENV_ID, task=str(task_file))
