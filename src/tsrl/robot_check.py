@@ -26,7 +26,6 @@ from .ik import DlsSolver, IKOptions
 from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 from .robot_model import PreparedArm, RobotNotice, load_robot_model, robot_label
 from .robots import HOME_KEY, Robot, load_robot
-from .servos import servos_on
 from .settling import settle
 from .taskmaps import Position, resolve_frame
 
@@ -117,7 +116,7 @@ def check_robot(
     lines += [f"dropped: {d}" for d in arm.dropped]
     problems: list[str] = []
 
-    settling = settle(model, robot.joints, robot.tcp, home, key)
+    settling = settle(model, robot.joints, robot.tcp, home, key, arm.servos)
     lines.append(f"settling: {settling.summary()}")
     for r in settling.responses:
         lines.append(
@@ -230,8 +229,8 @@ def _servo_lines(model: mujoco.MjModel, robot: Robot, arm: PreparedArm) -> list[
     lines = [head]
     width = max(len(s) for s in arm.servos)
     inertia = {g.joint: g.inertia for g in arm.added}
-    for joint, a in zip(robot.joints, servos_on(model, robot.joints), strict=True):
-        assert a is not None  # load_robot_model left a servo on every joint
+    for joint, servo in zip(robot.joints, arm.servos, strict=True):
+        a = name_to_id(model, "actuator", servo)
         kp, kv = model.actuator_gainprm[a, 0], -model.actuator_biasprm[a, 2]
         lo, hi = model.actuator_ctrlrange[a] if model.actuator_ctrllimited[a] else (-np.inf, np.inf)
         m = f"m = {inertia[joint]:.4g}, " if joint in inertia else ""

@@ -178,9 +178,10 @@ def prepare_spec(spec: mujoco.MjSpec, robot: Robot, where: str) -> PreparedArm:
         servos = add_servos(spec, added)
     else:
         servos = own
-        for name, a in zip(own, servos_on(probe, joints), strict=True):
-            if not probe.actuator(a).name:  # an unnamed servo gets tsrl's name, so that it can be bound
-                spec.actuators[a].name = name
+        if not robot.actuators:  # found on the model: an unnamed one gets tsrl's name (Robot.bind finds it)
+            for name, a in zip(own, servos_on(probe, joints), strict=True):
+                if a is not None and not probe.actuator(a).name:
+                    spec.actuators[a].name = name
     if gravity:
         add_gravity_compensation(spec, joints)
     if robot.home is not None and not isinstance(robot.home, str):

@@ -12,7 +12,7 @@ import numpy as np
 
 from .exceptions import InvalidConfig
 from .ik import DlsSolver, IKOptions
-from .kinematics import arm_dof_indices, arm_qpos_indices
+from .kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
 from .servos import servos_on
 from .taskmaps import Frame, Position, resolve_frame
 
@@ -90,10 +90,12 @@ def settle(
     tcp: str,
     home_q: np.ndarray,
     key: int | None = None,
+    servos: Sequence[str] | None = None,
     directions: np.ndarray = DIRECTIONS,
 ) -> Settling:
     """Steps the TCP's commanded point by STEP along each direction (k, 3) from rest at home: keyframe
-    `key` (the model's default state if None) with the joints at `home_q` (n,).
+    `key` (the model's default state if None) with the joints at `home_q` (n,). `servos` names the
+    joints' position servos in their order (None: the one servo found on each joint).
 
     The commanded point's joint targets come from tsrl's IK (a local solve of position(tcp) from home,
     with the null-space posture at home on a redundant arm); the servos get them at t = 0 and the
@@ -103,11 +105,11 @@ def settle(
     Raises:
         InvalidConfig: a joint without a position servo, or a commanded point the IK cannot reach.
     """
-    servos = servos_on(model, joints)
-    missing = [j for j, a in zip(joints, servos, strict=True) if a is None]
+    found = servos_on(model, joints) if servos is None else [name_to_id(model, "actuator", s) for s in servos]
+    missing = [j for j, a in zip(joints, found, strict=True) if a is None]
     if missing:
         raise InvalidConfig(f"joints {', '.join(missing)} have no position servo to settle with")
-    ctrl = np.array(servos, dtype=int)
+    ctrl = np.array(found, dtype=int)
     qpos = arm_qpos_indices(model, joints)
     frame = resolve_frame(model, tcp)
     posture = tuple(float(q) for q in home_q) if len(joints) > 6 else None
