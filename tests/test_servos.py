@@ -365,3 +365,11 @@ def test_a_urdf_without_limits_on_a_slide_is_an_error_and_with_them_gets_servos(
     model = spec.compile()
     assert model.nu == 2 and arm.servos == (servo_name("j1"), servo_name("j2"))
     np.testing.assert_array_equal(model.actuator(servo_name("j2")).ctrlrange, [-0.1, 0.1])
+
+
+def test_unnamed_servos_of_the_model_get_names_so_that_the_robot_binds_them():
+    servos = "".join(f'<position joint="{j}" kp="100"/>' for j in JOINTS)
+    model, arm = prepared(bare_arm(extra=f"<actuator>{servos}</actuator>"), arm_robot())
+    assert arm.added == () and arm.servos == tuple(servo_name(j) for j in JOINTS)
+    assert [model.actuator(a).name for a in range(model.nu)] == list(arm.servos)
+    np.testing.assert_array_equal(arm_robot().bind(model).ctrl, slice(0, 3))
