@@ -185,7 +185,13 @@ def prepare_spec(spec: mujoco.MjSpec, robot: Robot, where: str) -> PreparedArm:
     if gravity:
         add_gravity_compensation(spec, joints)
     if robot.home is not None and not isinstance(robot.home, str):
-        _add_home_key(spec, probe, joints, home_q, servos, own is None)
+        if own is None:  # tsrl's servos come after the model's actuators
+            ids: Sequence[int] = range(probe.nu, probe.nu + len(servos))
+        elif robot.actuators:
+            ids = [name_to_id(probe, "actuator", s) for s in servos]
+        else:
+            ids = [a for a in servos_on(probe, joints) if a is not None]
+        _add_home_key(spec, probe, joints, home_q, ids, len(added))
     for notice in notices:
         warnings.warn(notice, RobotNotice, stacklevel=2)
     return PreparedArm(
@@ -431,25 +437,21 @@ def _add_home_key(
     model: mujoco.MjModel,
     joints: Sequence[str],
     home_q: np.ndarray,
-    servos: Sequence[str],
-    added: bool,
+    servo_ids: Sequence[int],
+    added: int,
 ) -> None:
     """The keyframe HOME_KEY: the joints at home, their servos' targets there, every other hinge or
     slide joint at qpos0 clipped into its range (a model's qpos0 may lie outside a joint's range: the
-    limit would then move it, and the arm with it, at the start of every episode)."""
+    limit would then move it, and the arm with it, at the start of every episode). `servo_ids`: the
+    servos' actuator ids once compiled; `added`: how many actuators tsrl adds after the model's."""
     qpos = model.qpos0.copy()
     for j in range(model.njnt):
         if model.jnt_limited[j] and int(model.jnt_type[j]) in (_HINGE, _SLIDE):
             a = model.jnt_qposadr[j]
             qpos[a] = np.clip(qpos[a], *model.jnt_range[j])
     qpos[arm_qpos_indices(model, joints)] = home_q
-    ctrl = np.zeros(model.nu + (len(servos) if added else 0))
-    ids = (
-        range(model.nu, model.nu + len(servos))
-        if added
-        else [name_to_id(model, "actuator", s) for s in servos]
-    )
-    ctrl[list(ids)] = home_q
+    ctrl = np.zeros(model.nu + added)
+    ctrl[list(servo_ids)] = home_q
     spec.add_key(name=HOME_KEY, qpos=qpos.tolist(), ctrl=ctrl.tolist())
 
 
