@@ -12,6 +12,7 @@ from ..exceptions import InvalidConfig, ModelLoadError
 from ..model_files import resolve_model_path
 from ..robot_model import compile_spec, prepare_spec, robot_label
 from ..robots import ROBOTS, load_robot
+from .task_frames import add_frame_aliases, express_in_base
 from .tasks import Task
 
 #: The goal marker every task's scene has (or gets): a mocap body and its site, the frame of the desired goal.
@@ -24,8 +25,10 @@ MODEL_SUFFIXES = (".xml", ".urdf")
 def load_scene(task: Task) -> mujoco.MjModel:
     """Compiles the task's scene.
 
-    A built-in scene with a built-in robot is compiled as it is (those arms have their own servos).
-    Otherwise the scene's MjSpec gets the robot prepared (`tsrl.robot_model.prepare_spec`) before it
+    A built-in scene with a built-in robot is compiled as it is (those arms have their own servos and
+    the frames `tcp` and `base`). Otherwise the scene's MjSpec gets the robot prepared
+    (`tsrl.robot_model.prepare_spec`), the sites `tcp` and `base` where it lacks them
+    (envs/task_frames.py) and, with frame = "base", the scene expressed in the base frame, before it
     is compiled. A file path is relative to the task file, or names a file inside an installed package
     (`pkg://<package>/<path>`, tsrl.model_files); a model without a `target` body gets one (a mocap
     body with a `target` site, no collisions), placed at the goal box centre.
@@ -35,7 +38,7 @@ def load_scene(task: Task) -> mujoco.MjModel:
             model (one line naming the robot file and the key).
         ModelLoadError: MuJoCo cannot load the file.
     """
-    if task.scene in SCENES and task.robot in ROBOTS:
+    if task.scene in SCENES and task.robot in ROBOTS and task.frame == "world":
         return load_model(task.scene)
     in_file = f"{task.source}: " if task.source is not None else ""
     path = _scene_file(task, in_file)
@@ -44,7 +47,12 @@ def load_scene(task: Task) -> mujoco.MjModel:
     except ValueError as err:
         reason = " ".join(str(err).split())
         raise ModelLoadError(f"{in_file}scene = {str(path)!r}: MuJoCo could not load it: {reason}") from None
-    prepare_spec(spec, load_robot(task.robot_path), robot_label(task.robot_path))
+    robot = load_robot(task.robot_path)
+    label = robot_label(task.robot_path)
+    prepare_spec(spec, robot, label)
+    add_frame_aliases(spec, compile_spec(spec, label), robot, label)
+    if task.frame == "base":
+        express_in_base(spec, f"{task.source or task.name}")
     if spec.body(TARGET_BODY) is None:
         body = spec.worldbody.add_body(name=TARGET_BODY, mocap=True, pos=list(task.goal.position.center))
         body.add_site(

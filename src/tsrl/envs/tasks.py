@@ -237,6 +237,8 @@ class Task:
         start_noise: uniform noise [rad] added to each arm joint of the home pose at reset (0: none).
         episode_steps: control steps per episode.
         control_dt: control period [s] (a multiple of the scene's physics timestep).
+        frame: "world", or "base": the scene expressed in the robot's base frame, so that every
+            position of the task and every map value is relative to the base (envs/task_frames.py).
         randomize: perturbations of the world per episode (none by default).
         description: one line shown in listings.
     """
@@ -253,6 +255,7 @@ class Task:
     start_noise: float = 0.0
     episode_steps: int = 50
     control_dt: float = 0.04
+    frame: Literal["world", "base"] = "world"
     randomize: Randomize = field(default_factory=Randomize)
     description: str = ""
     #: The file the task was loaded from (scene paths are relative to it); None for tasks in code.
