@@ -1,5 +1,11 @@
 """A policy's deterministic rollouts on seeded episodes: its success rate, final distance and share of
-penalised episodes (Evaluator, evaluate_run) and a video of it (render_run)."""
+penalised episodes (Evaluator, evaluate_run), on its own task or on another of the same layout,
+perturbed or not (tsrl.agents.transfer), and a video of it (render_run).
+
+Success and distance are measured against the true goal: where the task reports
+info["true_success"] / info["true_distance"] (a `[randomize]` goal_offset shows the policy a moved
+goal), those count, else info["is_success"] / info["distance"].
+"""
 
 from __future__ import annotations
 
@@ -13,21 +19,29 @@ import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
+from ..envs.registration import TASK_ENV_ID
+from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_policy, usable_checkpoint
 from .config import TrainConfig
 from .factory import ALGO_CLASSES, make_env
 from .run_folder import NotARunFolder, load_config
+from .transfer import EvalTask, check_layout, eval_task
 
 #: Evaluation seeds are drawn from a stream of their own, apart from training's episode seeds.
 _EVAL_STREAM = 0xE7A1
+#: The stream of evaluations after training (experiments' [[evaluate]] arms): goals no training
+#: evaluation has seen.
+_FRESH_STREAM = 0xE7A2
 
 
 @dataclass(frozen=True)
 class EvalResult:
     success_rate: float
-    """Fraction of episodes whose last step has info["is_success"]."""
+    """Fraction of episodes whose last step has info["true_success"] where the env reports it (a
+    goal_offset perturbation), else info["is_success"]."""
     mean_final_distance: float
-    """Mean of info["distance"] at the last step [m] (NaN if the env does not report it)."""
+    """Mean of info["true_distance"] (else info["distance"]) at the last step [m] (NaN if the env
+    reports neither)."""
     episodes: int
     penalised_rate: float = float("nan")
     """Fraction of episodes with a penalised step (info["penalty"] not 0, e.g. touching an obstacle);
@@ -39,15 +53,26 @@ def eval_seeds(seed: int, n: int) -> list[int]:
     return [int(s) for s in np.random.SeedSequence(entropy=seed, spawn_key=(_EVAL_STREAM,)).generate_state(n)]
 
 
+def fresh_eval_seeds(seed: int, n: int) -> list[int]:
+    """Seeds of n evaluation episodes after training, apart from those of training's evaluations."""
+    return [
+        int(s) for s in np.random.SeedSequence(entropy=seed, spawn_key=(_FRESH_STREAM,)).generate_state(n)
+    ]
+
+
 class Evaluator:
     """Runs `len(seeds)` episodes side by side (one batched policy call per step), deterministically.
 
-    Owns its environments: call close() when done.
+    On the run's own task, or on `task` (another task of the same layout, or a perturbed one) under
+    the run's observation and action. Owns its environments: call close() when done.
     """
 
-    def __init__(self, cfg: TrainConfig, seeds: list[int]):
+    def __init__(self, cfg: TrainConfig, seeds: list[int], task: EvalTask | None = None):
         self.seeds = list(seeds)
-        self.envs: list[gym.Env] = [make_env(cfg) for _ in self.seeds]
+        self.envs: list[gym.Env] = [
+            make_env(cfg) if task is None else gym.make(TASK_ENV_ID, **task.env_kwargs(cfg))
+            for _ in self.seeds
+        ]
 
     def evaluate(self, model: BaseAlgorithm, normalizer: VecNormalize | None) -> EvalResult:
         observations = [env.reset(seed=s)[0] for env, s in zip(self.envs, self.seeds, strict=True)]
@@ -68,8 +93,8 @@ class Evaluator:
                     reports_penalty = True
                     penalised[i] |= info["penalty"] != 0
                 if terminated or truncated:
-                    success[i] = bool(info.get("is_success", False))
-                    distance[i] = float(info.get("distance", np.nan))
+                    success[i] = bool(info.get("true_success", info.get("is_success", False)))
+                    distance[i] = float(info.get("true_distance", info.get("distance", np.nan)))
                 else:
                     still.append(i)
             active = still
@@ -84,11 +109,13 @@ class Evaluator:
 
 @dataclass(frozen=True)
 class RunEvaluation:
-    """evaluate_run's answer: the result and which checkpoint it is of."""
+    """evaluate_run's answer: the result, which checkpoint it is of, and the task it ran on."""
 
     result: EvalResult
     env_steps: int
     checkpoint: Path
+    task: str = ""
+    """The evaluated task's name (the env id or task file's name, with its perturbation)."""
 
 
 def load_run_policy(run_dir: Path) -> tuple[TrainConfig, BaseAlgorithm, VecNormalize | None, Checkpoint]:
@@ -104,16 +131,58 @@ def load_run_policy(run_dir: Path) -> tuple[TrainConfig, BaseAlgorithm, VecNorma
     return cfg, model, normalizer, checkpoint
 
 
-def evaluate_run(run_dir: Path, episodes: int, seed: int | None = None) -> RunEvaluation:
+def target_env(env_id: str | None = None, task: str | Path | None = None) -> str | None:
+    """The one evaluated environment of `env_id` (a registered id) or `task` (a task file), None for
+    the run's own; both given is an error."""
+    if env_id is not None and task is not None:
+        raise InvalidConfig("give --env or --task, not both")
+    if task is not None and not str(task).endswith(".toml"):
+        raise InvalidConfig(f"--task {task}: expected a task file (*.toml); registered ids go to --env")
+    return str(task) if task is not None else env_id
+
+
+def evaluate_run(
+    run_dir: Path,
+    episodes: int,
+    seed: int | None = None,
+    env_id: str | None = None,
+    task: str | Path | None = None,
+) -> RunEvaluation:
     """Success rate and mean final distance of a run's newest usable checkpoint over `episodes` seeded
-    episodes (seeds from `seed`, by default the run's)."""
+    episodes (seeds from `seed`, by default the run's training-evaluation seeds), on its own task, on
+    `env_id` (a registered id) or on `task` (a task file) of the same layout: a layout that differs is
+    one line of InvalidConfig naming the first differing row or part, raised before the policy loads."""
+    target = eval_task(load_config(run_dir), target_env(env_id, task))
+    return evaluate_run_on(run_dir, [target], episodes, seed)[0]
+
+
+def evaluate_run_on(
+    run_dir: Path, tasks: list[EvalTask], episodes: int, seed: int | None = None, fresh: bool = False
+) -> list[RunEvaluation]:
+    """evaluate_run on each of `tasks` (e.g. tsrl.agents.transfer.sweep's), in order: every layout
+    checked first, the policy loaded once, every task on the same episode seeds (paired). `fresh`:
+    seeds no training evaluation used (fresh_eval_seeds), else the training evaluation's (eval_seeds)."""
+    cfg = load_config(run_dir)
+    for t in tasks:
+        check_layout(cfg, t)
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
-    evaluator = Evaluator(cfg, eval_seeds(cfg.seed if seed is None else seed, episodes))
+    seeds = (fresh_eval_seeds if fresh else eval_seeds)(cfg.seed if seed is None else seed, episodes)
+    steps = checkpoint.state.env_steps
+    return [
+        RunEvaluation(evaluate_policy(cfg, model, normalizer, t, seeds), steps, checkpoint.path, t.name)
+        for t in tasks
+    ]
+
+
+def evaluate_policy(
+    cfg: TrainConfig, model: BaseAlgorithm, normalizer: VecNormalize | None, task: EvalTask, seeds: list[int]
+) -> EvalResult:
+    """One evaluation of a loaded policy on `task` over the episodes of `seeds`."""
+    evaluator = Evaluator(cfg, seeds, task)
     try:
-        result = evaluator.evaluate(model, normalizer)
+        return evaluator.evaluate(model, normalizer)
     finally:
         evaluator.close()
-    return RunEvaluation(result, checkpoint.state.env_steps, checkpoint.path)
 
 
 def render_run(

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..agents.config import AgentConfig, Algo, TrainConfig
+from ..agents.transfer import EvalTask, Perturbation
 from ..configs import load_table, read_toml
 from ..exceptions import InvalidConfig, TsrlError, check_int, is_number
 
@@ -39,7 +40,10 @@ COMPARISON_METRICS: dict[str, str] = {
     "final_success": "mean success rate of the last evaluations",
     "final_penalised": "mean share of evaluation episodes with a penalised step (e.g. touching an obstacle) in "
     "the last evaluations; tasks with penalties only",
+    "success": "success rate of an evaluation-only arm ([[evaluate]]) over its episodes, at the end of training",
 }
+#: The one metric of evaluation-only arms; the others are of trained arms.
+EVAL_METRIC = "success"
 DIRECTIONS: tuple[str, ...] = ("greater", "less", "two-sided")
 
 
@@ -71,6 +75,40 @@ class Comparison:
             raise InvalidConfig(f"unknown direction {self.direction!r}; accepted: {', '.join(DIRECTIONS)}")
         if self.min_effect is not None and (not is_number(self.min_effect) or self.min_effect <= 0):
             raise InvalidConfig(f"min_effect must be a number > 0; got {self.min_effect!r}")
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """An evaluation-only arm (the file's [[evaluate]] tables): each seed's final policy of a trained
+    arm, evaluated after training on another task of the same layout (another arm: "train on A,
+    evaluate on B"), or on its own, optionally over a swept perturbation (one arm per value).
+
+    Each run's episodes are seeded apart from its training evaluations (fresh goals) and shared by
+    every [[evaluate]] of the run, so arms on the same policy are paired. Results:
+    `<experiment dir>/evaluations.csv`, summarised by `tsrl report`."""
+
+    name: str
+    """The arm's label in the report and in [[comparisons]] (with a sweep, `name@value` per value)."""
+    arm: str
+    """The trained arm whose policies are evaluated (its label, as [[comparisons]] name it)."""
+    env: str
+    """A registered id or a task file (relative to the experiment file) with the arm's layout."""
+    episodes: int = 100
+    """Deterministic episodes per seed."""
+    perturb: Perturbation | None = None
+    """A `[randomize]` key swept over values (`[evaluate.perturb]`: key, values), each its own arm,
+    on the task as it is otherwise (tsrl.agents.transfer)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name or "@" in self.name:
+            raise InvalidConfig(f"name must be a non-empty label without '@'; got {self.name!r}")
+        check_int("episodes", self.episodes, 1)
+
+    def labels(self) -> list[str]:
+        """The labels of its arms: `name`, or `name@value` per swept value."""
+        if self.perturb is None:
+            return [self.name]
+        return [f"{self.name}@{v:g}" for v in self.perturb.values]
 
 
 @dataclass(frozen=True)
@@ -124,6 +162,8 @@ class ExperimentConfig:
     comparisons: tuple[Comparison, ...] = ()
     """Pre-registered comparisons (the file's [[comparisons]] tables), reported with effect, interval,
     Holm-adjusted p-value, power and verdict by `tsrl report`."""
+    evaluate: tuple[Evaluation, ...] = ()
+    """Evaluation-only arms (the file's [[evaluate]] tables), run after training."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name or self.name.startswith("."):
@@ -141,6 +181,7 @@ class ExperimentConfig:
             raise InvalidConfig(f"seeds must be integers >= 0; got {min(self.seeds)}")
         self._check_demos()
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
+        self._check_evaluations()
         self._check_comparisons()
 
     def arms(self) -> list[str]:
@@ -150,13 +191,35 @@ class ExperimentConfig:
         ]
         return config_labels(keys)
 
+    def arm_runs(self, arm: str, exp_dir: Path | None = None) -> list[TrainConfig]:
+        """The runs (one per seed, in seed order) of the trained arm labelled `arm`."""
+        labels = self.arms()  # runs() is seed-major over the same grid order
+        return [cfg for i, cfg in enumerate(self.runs(exp_dir)) if labels[i % len(labels)] == arm]
+
+    def eval_arms(self) -> list[str]:
+        """The labels of the evaluation-only arms ([[evaluate]]), in file order."""
+        return [label for e in self.evaluate for label in e.labels()]
+
+    def _check_evaluations(self) -> None:
+        arms, seen = self.arms(), set(self.arms())
+        for i, e in enumerate(self.evaluate):
+            if e.arm not in arms:
+                raise InvalidConfig(f"[evaluate[{i}]] unknown arm {e.arm!r}; accepted: {', '.join(arms)}")
+            for label in e.labels():
+                if label in seen:
+                    raise InvalidConfig(f"[evaluate[{i}]] the label {label!r} is taken; give another name")
+                seen.add(label)
+
     def _check_comparisons(self) -> None:
-        arms = self.arms()
+        arms, evals = self.arms(), self.eval_arms()
         for i, c in enumerate(self.comparisons):
+            accepted = evals if c.metric == EVAL_METRIC else arms
             for arm in (c.a, c.b):
-                if arm not in arms:
+                if arm not in accepted:
+                    kind = "evaluation-only arm ([[evaluate]])" if c.metric == EVAL_METRIC else "trained arm"
                     raise InvalidConfig(
-                        f"[comparisons[{i}]] unknown arm {arm!r}; accepted: {', '.join(arms)}"
+                        f"[comparisons[{i}]] metric {c.metric} compares a {kind}; unknown {arm!r}; "
+                        f"accepted: {', '.join(accepted) or 'none'}"
                     )
             if c.a == c.b:
                 raise InvalidConfig(f"[comparisons[{i}]] compares arm {c.a!r} with itself")
@@ -238,6 +301,10 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             else e
             for e in envs
         ]
+    for table in data.get("evaluate", []) if isinstance(data.get("evaluate"), list) else []:
+        env = table.get("env") if isinstance(table, dict) else None
+        if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():
+            table["env"] = str(path.parent / env)
     agent = data.get("agent")
     if isinstance(agent, dict) and "algo" in agent:
         raise InvalidConfig(f"{path}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
@@ -269,6 +336,24 @@ def check_environments(exp: ExperimentConfig, where: str = "experiment") -> None
             ) from None
         except gym.error.Error as err:
             raise InvalidConfig(f"{where}: env {cfg.env_id!r}: {err}") from None
+    for i, e in enumerate(exp.evaluate):
+        try:
+            evaluation_tasks(exp, e)
+        except TsrlError as err:
+            raise InvalidConfig(f"{where}: [evaluate[{i}]] {err}") from None
+
+
+def evaluation_tasks(exp: ExperimentConfig, evaluation: Evaluation) -> list[EvalTask]:
+    """The tasks of an [[evaluate]] table (one per swept value), each checked against the layout of
+    its trained arm (tsrl.agents.transfer; InvalidConfig, one line, when it differs)."""
+    from ..agents.transfer import check_layout, eval_task, sweep
+
+    cfg = exp.arm_runs(evaluation.arm)[0]
+    target = eval_task(cfg, evaluation.env)
+    tasks = [target] if evaluation.perturb is None else sweep(target, evaluation.perturb)
+    for t in tasks:
+        check_layout(cfg, t)
+    return tasks
 
 
 def known_experiments(folders: list[Path]) -> list[str]:
