@@ -300,13 +300,17 @@ class Task:
 #: Built-in tasks: name -> TOML file under tsrl/envs/task_files.
 BUILTIN_TASKS: dict[str, str] = {
     "UR5eReach-v0": "reach.toml",
+    "UR5eReach-v1": "reach_v1.toml",
     "UR5ePickPlace-v0": "pick_place.toml",
+    "UR5ePickPlace-v1": "pick_place_v1.toml",
     "UR5ePoseReach-v0": "pose_reach.toml",
     "UR5eObstacleReach-v0": "obstacle_reach.toml",
     "UR5eObstacleReach-v1": "obstacle_reach_v1.toml",
     "UR5ePush-v0": "push.toml",
     "PandaReach-v0": "panda_reach.toml",
+    "PandaReach-v1": "panda_reach_v1.toml",
     "PandaPickPlace-v0": "panda_pick_place.toml",
+    "PandaPickPlace-v1": "panda_pick_place_v1.toml",
     "PandaPoseReach-v0": "panda_pose_reach.toml",
     "PandaObstacleReach-v0": "panda_obstacle_reach.toml",
     "PandaObstacleReach-v1": "panda_obstacle_reach_v1.toml",
