@@ -194,6 +194,7 @@ class Robot:
             joint_range=joint_limits(model, self.joints),
             home_key=name_to_id(model, "key", home) if self.home is not None else None,
             suction_ctrl=name_to_id(model, "actuator", self.suction) if self.suction is not None else None,
+            gripper_ctrl=name_to_id(model, "actuator", self.gripper) if self.gripper is not None else None,
             # A redundant arm (more than six joints) keeps its elbow near home through the IK's
             # null-space posture term.
             posture=tuple(float(q) for q in home_q) if len(self.joints) > 6 else None,
@@ -207,8 +208,9 @@ class BoundRobot:
     Attributes:
         robot: the description; qpos, ctrl: the arm joints' qpos and servos' ctrl indices (slices
         where contiguous); joint_range: (n, 2) joint limits [rad or m]; home_key: the home keyframe's
-        id, or None (the model's default state); suction_ctrl: the suction actuator's ctrl index, or
-        None; posture: the IK's null-space posture (home) on a redundant arm, else None.
+        id, or None (the model's default state); suction_ctrl, gripper_ctrl: the suction actuator's
+        and the gripper servo's ctrl index, or None; posture: the IK's null-space posture (home) on a
+        redundant arm, else None.
     """
 
     robot: Robot
@@ -217,6 +219,7 @@ class BoundRobot:
     joint_range: np.ndarray
     home_key: int | None
     suction_ctrl: int | None
+    gripper_ctrl: int | None
     posture: tuple[float, ...] | None
 
     @property

@@ -64,12 +64,21 @@ class ActionSpec:
         joint_step: radians a joint target moves per step at |a| = 1 (joint actions); the default is
             180 deg/s over one 40 ms control period.
         suction: whether a last action dimension commands the suction cup (on above 0).
+        gripper: whether a last action dimension sets the gripper's opening width: the gripper
+            servo's target is low + (a + 1) / 2 (high - low), its control range [m].
     """
 
     parts: tuple[ActionPart, ...] = ()
     hold: tuple[HeldPart, ...] = ()
     joint_step: float = 0.04 * math.pi
     suction: bool = False
+    gripper: bool = False
+
+    def __post_init__(self) -> None:
+        if self.suction and self.gripper:
+            raise InvalidConfig(
+                "action: suction and gripper are both true; accepted: one tool dimension at most"
+            )
 
     @property
     def uses_ik(self) -> bool:
@@ -106,7 +115,7 @@ ACTION_MODES: dict[str, str] = {
 def action_mode(spec: ActionSpec) -> str:
     """The built-in mode (ACTION_PRESETS) `spec` is, with or without its suction dimension; else "task"."""
     for name, preset in ACTION_PRESETS.items():
-        if dataclasses.replace(preset, suction=spec.suction) == spec:
+        if dataclasses.replace(preset, suction=spec.suction, gripper=spec.gripper) == spec:
             return name
     return "task"
 
@@ -128,7 +137,7 @@ class ActionMap:
     `ik_map` stacks the parts, then the held maps (`held_map`, their values `held_target`);
     `ik_target(a, y)` writes the target of the IK map for action a given the IK map's current value
     y, into one buffer it returns each time. `dim` is the action's size (parts, or one per joint for
-    joint actions, plus suction).
+    joint actions, plus the suction or gripper dimension).
     """
 
     def __init__(self, spec: ActionSpec, model: mujoco.MjModel, n_joints: int):
@@ -136,7 +145,7 @@ class ActionMap:
         self.ik_map: Stack | None = None
         self.held_map: Stack | None = None
         self.held_target = np.zeros(0)
-        self.dim = n_joints + int(spec.suction)
+        self.dim = n_joints + int(spec.suction) + int(spec.gripper)
         self._parts: list[_Part] = []
         if not spec.uses_ik:
             return
@@ -169,7 +178,7 @@ class ActionMap:
         if held_maps:
             self.held_map = Stack(held_maps)
             self.held_target = np.concatenate([h.value for h in spec.hold])
-        self.dim = col + int(spec.suction)
+        self.dim = col + int(spec.suction) + int(spec.gripper)
 
     def ik_target(self, a: np.ndarray, y: np.ndarray) -> np.ndarray:
         """The IK map's target (dim,) for action a (k,) at the IK map's current value y (dim,)."""

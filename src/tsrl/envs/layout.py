@@ -46,6 +46,9 @@ def layout(env: TaskEnv) -> Layout:
         action.append((held.map, f"held at {held.value}"))
     if spec.suction:
         action.append(("suction", "on above 0"))
+    if spec.gripper and env.bound_robot.gripper_ctrl is not None:
+        low, high = env.model.actuator_ctrlrange[env.bound_robot.gripper_ctrl]
+        action.append(("gripper", f"opening width {low:g} to {high:g} m"))
     return Layout(observation, goal, tuple(action), env.task.control_dt)
 
 

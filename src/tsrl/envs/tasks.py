@@ -280,15 +280,16 @@ class Task:
         self, obs: str | None = None, action: str | None = None, success_radius: float | None = None
     ) -> Task:
         """This task with another observation (a preset or spec), a built-in action mode (the task's
-        suction dimension kept) or position tolerance [m]; itself when nothing is given."""
+        suction or gripper dimension kept) or position tolerance [m]; itself when nothing is given."""
         overrides: dict[str, Any] = {}
         if obs is not None:
             overrides["observation"] = obs
         if action is not None:
             if action not in ACTION_PRESETS:
                 raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_PRESETS)}")
+            spec = self.action_spec
             overrides["action"] = dataclasses.replace(
-                ACTION_PRESETS[action], suction=self.action_spec.suction
+                ACTION_PRESETS[action], suction=spec.suction, gripper=spec.gripper
             )
         if success_radius is not None:
             if isinstance(success_radius, bool) or not success_radius > 0:
@@ -315,6 +316,7 @@ BUILTIN_TASKS: dict[str, str] = {
     "PandaObstacleReach-v0": "panda_obstacle_reach.toml",
     "PandaObstacleReach-v1": "panda_obstacle_reach_v1.toml",
     "PandaPush-v0": "panda_push.toml",
+    "PandaPickPlaceGripper-v0": "panda_pick_place_gripper.toml",
 }
 
 
