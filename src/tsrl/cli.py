@@ -26,6 +26,7 @@ from tyro.conf import Positional, arg
 from .agents.config import TrainConfig, check_env_id
 from .agents.run_folder import CONFIG_FILE, check_not_locked, load_config
 from .assets import SCENES
+from .deploy.cli import DEPLOY_COMMANDS
 from .exceptions import InvalidConfig, TsrlError
 from .experiments.cli import EXPERIMENT_COMMANDS
 from .robot_check import ROBOT_COMMANDS
@@ -270,6 +271,7 @@ COMMANDS: dict[str, type] = {
     "demos": Demos,
     **EXPERIMENT_COMMANDS,
     **ROBOT_COMMANDS,
+    **DEPLOY_COMMANDS,
 }
 
 

@@ -83,6 +83,8 @@ class JointLimiter:
         self._c0 = np.zeros(n)  # reference: from c0 at t_k to target over one control period
         self._target = np.zeros(n)
         self._v_ref = np.zeros(n)
+        self._delta = np.zeros(n)  # target - c0
+        self._tick_fraction = self.servo_period / self.control_period
         self._t_k = 0.0
         self._ready = False
 
@@ -115,6 +117,7 @@ class JointLimiter:
         target = np.minimum(np.maximum(stop, self.lower), self.upper)
         self._c0[:] = target  # no ramp: the reference is the stop point at once, v_r = 0
         self._target[:] = target
+        self._delta[:] = 0.0
         self._v_ref[:] = 0.0
         self._t_k = float(t)
         return target.copy()
@@ -129,28 +132,41 @@ class JointLimiter:
         return self._c0 + s * (self._target - self._c0), self._v_ref
 
     def step(self, t: float) -> np.ndarray:
-        """The next servo command (n,) at time t: one tick of period h toward the reference (a new array)."""
+        """The next servo command (n,) at time t: one tick of period h toward the reference (a new array).
+
+        Written for the servo rate (numpy's np.clip costs three minimum/maximum calls; views, no copies).
+        """
         self._check_ready()
         h = self.servo_period
         q, v_prev = self.q, self.v
-        r, v_ref = self.reference(t)
-        # Gaps: to the reference at the previous tick's time (on the reference, v = v_ref), and to the
-        # upper and lower limits; their stop speeds in one vectorised call (it runs at the servo rate).
         gaps = self._gaps
-        np.subtract(r, q, out=gaps[0])
-        gaps[0] -= v_ref * h
+        # Row 0: the gap to the reference at the previous tick's time, r(t) - v_r h - q (on the
+        # reference, v = v_r); rows 1, 2: to the upper and lower limits. One vectorised stop speed.
+        s = (t - self._t_k) / self.control_period
+        if s >= 1.0:
+            np.subtract(self._target, q, out=gaps[0])
+        else:
+            np.multiply(self._delta, max(s, 0.0) - self._tick_fraction, out=gaps[0])
+            gaps[0] += self._c0
+            gaps[0] -= q
         np.subtract(self._limits, q, out=gaps[1:])
         stop = self._stop_speed(gaps)
-        v = v_ref + stop[0]
-        np.clip(v, self._v_low, self.max_speed, out=v)
+        v = stop[0]
+        if s < 1.0:
+            v += self._v_ref
+        np.minimum(v, self.max_speed, out=v)
         np.minimum(v, stop[1], out=v)
+        np.maximum(v, self._v_low, out=v)
         np.maximum(v, stop[2], out=v)
-        np.clip(v, v_prev - self._ah, v_prev + self._ah, out=v)
-        q_next = q + v * h
-        np.clip(q_next, self.lower, self.upper, out=q_next)  # a no-op but for round-off
-        self.v = (q_next - q) / h
-        self.q = q_next
-        return q_next.copy()
+        np.minimum(v, v_prev + self._ah, out=v)
+        np.maximum(v, v_prev - self._ah, out=v)
+        v *= h
+        v += q  # q_next
+        np.minimum(v, self.upper, out=v)  # no-ops but for round-off
+        np.maximum(v, self.lower, out=v)
+        self.v = (v - q) / h
+        self.q = v
+        return v.copy()
 
     def _stop_speed(self, d: np.ndarray) -> np.ndarray:
         """s(d): the largest signed speed from which ticks of deceleration a_max h stop within d (per
@@ -172,7 +188,8 @@ class JointLimiter:
     def _set_reference(self, target: np.ndarray, t: float) -> None:
         self._c0[:] = self.q
         self._target[:] = target
-        self._v_ref[:] = (target - self.q) / self.control_period
+        np.subtract(target, self.q, out=self._delta)
+        np.divide(self._delta, self.control_period, out=self._v_ref)
         self._t_k = float(t)
 
     def _check_ready(self) -> None:

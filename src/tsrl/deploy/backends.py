@@ -1,0 +1,379 @@
+"""One robot interface (`RobotBackend`) and its backends: a simulated arm in MuJoCo, UR (ur-rtde),
+Franka (franky-control), and shadow mode (`ShadowBackend`: reads, sends nothing).
+
+A backend reads the arm's state, takes joint position commands, and paces the servo loop at its
+period. `check_backend(backend, contract)` refuses one whose joints differ from the contract's.
+
+`MujocoBackend` is the stand-in for hardware: a separate MuJoCo model of the arm (the export's scene,
+or another model file of the same arm) stepped one physics step per servo period, as fast as
+possible or in real time, with injectable command latency, observation noise and dropped messages;
+its clock is the simulation's. `UrRtdeBackend` and `FrankaBackend` are thin wrappers over their
+libraries' documented calls, imported when connected; they have not been tried on a robot
+(docs/deploy.md).
+"""
+
+from __future__ import annotations
+
+import collections
+import time
+from pathlib import Path
+from typing import Any, NamedTuple, Protocol
+
+import mujoco
+import numpy as np
+
+from ..assets import panda, ur5e
+from ..exceptions import InvalidAction, InvalidConfig, TsrlError
+from ..kinematics import arm_dof_indices, name_to_id
+from .contract import read_contract
+from .exported import exported_env
+
+
+class BackendError(TsrlError):
+    """A robot that does not answer, or a backend library that is missing: the arm was not moved."""
+
+
+class RobotState(NamedTuple):
+    """What a backend measured: at `time` [s, the backend's clock], joint positions q (n,) [rad],
+    velocities qd (n,) [rad/s], and object poses by body (7,) or (13,) (tsrl.deploy.Controller.act)."""
+
+    time: float
+    q: np.ndarray
+    qd: np.ndarray
+    objects: dict[str, np.ndarray]
+
+
+class RobotBackend(Protocol):
+    """A robot: `joint_names` (its joints, in the order of q), `period` (its servo period [s])."""
+
+    name: str
+    joint_names: tuple[str, ...]
+    period: float
+
+    def connect(self) -> None:
+        """Opens the connection (BackendError if the robot does not answer)."""
+
+    def now(self) -> float:
+        """The backend's clock [s]."""
+
+    def read_state(self) -> RobotState:
+        """The latest measured state."""
+
+    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+        """A joint position command (n,) for this servo period, and the suction command if any."""
+
+    def wait(self) -> None:
+        """Returns at the start of the next servo period."""
+
+    def reset(self, seed: int | None) -> None:
+        """A new episode: a simulator draws the task's start state; a real arm stays where it is."""
+
+    def close(self) -> None:
+        """Stops the arm's servoing and closes the connection."""
+
+
+def check_backend(backend: RobotBackend, contract: dict[str, Any]) -> None:
+    """Raises InvalidConfig (one line) unless the backend's joints are the contract's, in order."""
+    expected = list(contract["robot"]["joints"])
+    actual = list(backend.joint_names)
+    if actual != expected:
+        raise InvalidConfig(
+            f"backend {backend.name} has joints {actual} ({len(actual)}); the contract's robot has "
+            f"{expected} ({len(expected)}); the arm was not moved"
+        )
+
+
+class MujocoBackend:
+    """A simulated arm (module docstring); deterministic given `seed` (noise, drops).
+
+    Args:
+        export_dir: the export folder (its scene, robot and task); scene: another model file of the
+            same arm, or None for the exported scene.
+        realtime: pace the servo loop to the wall clock (else as fast as possible).
+        latency: seconds [s] before a command reaches the servos (rounded to servo periods).
+        joint_noise: standard deviation [rad] of Gaussian noise on measured joint positions.
+        object_noise: standard deviation [m] of Gaussian noise on measured object positions.
+        drop_rate: probability that a command is lost (the servos keep the last one) and that a state
+            read returns the previous state again (stale: the controller's guard holds).
+    """
+
+    name = "mujoco"
+
+    def __init__(
+        self,
+        export_dir: Path | str,
+        scene: Path | str | None = None,
+        *,
+        realtime: bool = False,
+        latency: float = 0.0,
+        joint_noise: float = 0.0,
+        object_noise: float = 0.0,
+        drop_rate: float = 0.0,
+        seed: int = 0,
+    ):
+        for key, value in (
+            ("latency", latency),
+            ("joint_noise", joint_noise),
+            ("object_noise", object_noise),
+        ):
+            if not value >= 0:
+                raise InvalidConfig(f"{key} must be >= 0; got {value}")
+        if not 0 <= drop_rate < 1:
+            raise InvalidConfig(f"drop_rate must be in [0, 1); got {drop_rate}")
+        contract = read_contract(export_dir)
+        self.env = exported_env(export_dir, contract, scene)
+        self.model, self.data = self.env.model, self.env.data
+        robot = self.env.bound_robot
+        self.joint_names: tuple[str, ...] = robot.joints
+        self.period = float(self.model.opt.timestep)
+        self.realtime = realtime
+        self._qpos, self._ctrl = robot.qpos, robot.ctrl
+        self._dofs = arm_dof_indices(self.model, robot.joints)
+        self._suction_ctrl = robot.suction_ctrl
+        self._objects: dict[str, tuple[int, int]] = {}
+        for obj in self.env.task.objects:
+            joint = self.model.body_jntadr[name_to_id(self.model, "body", obj.body)]
+            self._objects[obj.body] = (int(self.model.jnt_qposadr[joint]), int(self.model.jnt_dofadr[joint]))
+        self._delay = round(latency / self.period)
+        self.joint_noise, self.object_noise, self.drop_rate = joint_noise, object_noise, drop_rate
+        self._rng = np.random.default_rng(seed)
+        self._queue: collections.deque[tuple[np.ndarray, bool | None]] = collections.deque()
+        self._last_state: RobotState | None = None
+        self._wall_start = 0.0
+        self._sim_start = 0.0
+        #: Commands the servos received (after latency and drops), one per servo period.
+        self.applied = 0
+
+    def connect(self) -> None:
+        self._wall_start, self._sim_start = time.perf_counter(), self.data.time
+
+    def now(self) -> float:
+        return float(self.data.time)
+
+    def reset(self, seed: int | None) -> None:
+        self.env.reset(seed=seed)
+        self._queue.clear()
+        self._last_state = None
+        self._wall_start, self._sim_start = time.perf_counter(), self.data.time
+
+    def read_state(self) -> RobotState:
+        if self._last_state is not None and self.drop_rate and self._rng.random() < self.drop_rate:
+            return self._last_state  # the message was lost: the last one again
+        q = self.data.qpos[self._qpos].copy()
+        if self.joint_noise:
+            q += self._rng.normal(0.0, self.joint_noise, q.shape)
+        objects = {}
+        for body, (qadr, dadr) in self._objects.items():
+            state = np.concatenate([self.data.qpos[qadr : qadr + 7], self.data.qvel[dadr : dadr + 6]])
+            if self.object_noise:
+                state[:3] += self._rng.normal(0.0, self.object_noise, 3)
+            objects[body] = state
+        self._last_state = RobotState(self.now(), q, self.data.qvel[self._dofs].copy(), objects)
+        return self._last_state
+
+    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
+            raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
+        if self.drop_rate and self._rng.random() < self.drop_rate:
+            return  # lost on the way
+        self._queue.append((q.copy(), suction))
+
+    def wait(self) -> None:
+        """Applies the command due now (after `latency`), then one physics step; paced in real time."""
+        while len(self._queue) > self._delay:
+            q, suction = self._queue.popleft()
+            self.data.ctrl[self._ctrl] = q
+            if suction is not None and self._suction_ctrl is not None:
+                self.data.ctrl[self._suction_ctrl] = 1.0 if suction else 0.0
+            self.applied += 1
+        mujoco.mj_step(self.model, self.data)
+        if self.realtime:
+            ahead = (self.data.time - self._sim_start) - (time.perf_counter() - self._wall_start)
+            if ahead > 0:
+                time.sleep(ahead)
+
+    def place_goal_marker(self, goal: np.ndarray) -> None:
+        """Shows the goal (g,) in the simulated scene (the marker has no collisions)."""
+        self.env.goal.place(self.data, np.asarray(goal, dtype=np.float64))
+
+    def outcome(self) -> dict[str, Any]:
+        """The task's goal info (is_success, distance, ...) of the simulated arm's true state."""
+        self.env.plan.evaluate(self.model, self.data)
+        _, achieved, desired = self.env.plan.views
+        return self.env.goal.outcome(achieved, desired)[1]
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class ShadowBackend:
+    """Shadow mode (`--dry-run`): reads and paces like `backend`, computes nothing of its own, and sends
+    no command; `sent` counts what would have been sent."""
+
+    def __init__(self, backend: RobotBackend):
+        self.backend = backend
+        self.name = f"{backend.name} (dry run)"
+        self.joint_names = backend.joint_names
+        self.period = backend.period
+        self.sent = 0
+
+    def connect(self) -> None:
+        self.backend.connect()
+
+    def now(self) -> float:
+        return self.backend.now()
+
+    def read_state(self) -> RobotState:
+        return self.backend.read_state()
+
+    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+        self.sent += 1  # logged by the deploy loop; never forwarded
+
+    def wait(self) -> None:
+        self.backend.wait()
+
+    def reset(self, seed: int | None) -> None:
+        self.backend.reset(seed)
+
+    def close(self) -> None:
+        self.backend.close()
+
+
+def _import(module: str, extra: str, package: str) -> Any:
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise BackendError(f"the {extra} backend needs {package}: pip install 'tsrl[{extra}]'") from None
+
+
+class UrRtdeBackend:
+    """A Universal Robots arm over ur-rtde: `servoJ` at 500 Hz (untried on hardware; docs/deploy.md).
+
+    Calls (ur-rtde's documented Python API): RTDEReceiveInterface.getActualQ / getActualQd /
+    getTimestamp; RTDEControlInterface.initPeriod, servoJ(q, velocity, acceleration, dt,
+    lookahead_time, gain), waitPeriod, servoStop, stopScript. No objects: a reach task only.
+    """
+
+    name = "ur"
+    joint_names: tuple[str, ...] = ur5e.JOINT_NAMES  # base, shoulder, elbow, wrist 1-3: UR's order
+
+    def __init__(self, address: str, period: float = 0.002, lookahead_time: float = 0.1, gain: float = 300.0):
+        self.address, self.period = address, period
+        self.lookahead_time, self.gain = lookahead_time, gain
+        self._control: Any = None
+        self._receive: Any = None
+        self._t_start: Any = None
+        self._clock0 = 0.0
+
+    def connect(self) -> None:
+        rtde_control = _import("rtde_control", "ur", "ur-rtde")
+        rtde_receive = _import("rtde_receive", "ur", "ur-rtde")
+        try:
+            self._receive = rtde_receive.RTDEReceiveInterface(self.address)
+            self._control = rtde_control.RTDEControlInterface(self.address)
+        except RuntimeError as err:
+            raise BackendError(
+                f"ur backend: no answer from {self.address} ({err}); the arm was not moved"
+            ) from None
+        self._clock0 = time.perf_counter()
+        self._t_start = self._control.initPeriod()
+
+    def now(self) -> float:
+        return time.perf_counter() - self._clock0
+
+    def read_state(self) -> RobotState:
+        q = np.asarray(self._receive.getActualQ(), dtype=np.float64)
+        qd = np.asarray(self._receive.getActualQd(), dtype=np.float64)
+        return RobotState(self.now(), q, qd, {})
+
+    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+        # velocity and acceleration are unused by servoJ (ur-rtde's documentation); dt is the period.
+        self._control.servoJ(list(map(float, q)), 0.0, 0.0, self.period, self.lookahead_time, self.gain)
+
+    def wait(self) -> None:
+        self._control.waitPeriod(self._t_start)
+        self._t_start = self._control.initPeriod()
+
+    def reset(self, seed: int | None) -> None:
+        return None  # a real arm starts where it is
+
+    def close(self) -> None:
+        if self._control is not None:
+            self._control.servoStop()
+            self._control.stopScript()
+
+
+class FrankaBackend:
+    """A Franka arm over franky-control: joint position motions (untried on hardware; docs/deploy.md).
+
+    Each command is `robot.move(JointMotion(q), asynchronous=True)`, which franky re-plans at once
+    (Ruckig, within the arm's limits times `relative_dynamics_factor`); state from
+    `robot.current_joint_state` (position, velocity). No objects: a reach task only.
+    """
+
+    name = "franka"
+    joint_names: tuple[str, ...] = panda.JOINT_NAMES
+
+    def __init__(self, address: str, period: float = 0.01, relative_dynamics_factor: float = 0.1):
+        self.address, self.period = address, period
+        self.relative_dynamics_factor = relative_dynamics_factor
+        self._franky: Any = None
+        self._robot: Any = None
+        self._next = 0.0
+        self._clock0 = 0.0
+
+    def connect(self) -> None:
+        self._franky = _import("franky", "franka", "franky-control")
+        try:
+            self._robot = self._franky.Robot(self.address)
+            self._robot.recover_from_errors()
+        except Exception as err:  # noqa: BLE001  (libfranka's network errors are several classes)
+            raise BackendError(
+                f"franka backend: no answer from {self.address} ({err}); the arm was not moved"
+            ) from None
+        self._robot.relative_dynamics_factor = self.relative_dynamics_factor
+        self._clock0 = time.perf_counter()
+        self._next = self.period
+
+    def now(self) -> float:
+        return time.perf_counter() - self._clock0
+
+    def read_state(self) -> RobotState:
+        state = self._robot.current_joint_state
+        return RobotState(
+            self.now(), np.asarray(state.position, np.float64), np.asarray(state.velocity, np.float64), {}
+        )
+
+    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+        self._robot.move(self._franky.JointMotion(list(map(float, q))), asynchronous=True)
+
+    def wait(self) -> None:
+        ahead = self._next - self.now()
+        if ahead > 0:
+            time.sleep(ahead)
+        self._next += self.period
+
+    def reset(self, seed: int | None) -> None:
+        return None
+
+    def close(self) -> None:
+        if self._robot is not None:
+            self._robot.move(self._franky.JointStopMotion())
+
+
+#: Backend names of `tsrl deploy --backend`.
+BACKENDS: tuple[str, ...] = ("mujoco", "ur", "franka")
+
+
+def make_backend(name: str, export_dir: Path, address: str | None, options: dict[str, Any]) -> RobotBackend:
+    """The backend called `name` (BACKENDS); ur and franka need an address."""
+    if name == "mujoco":
+        return MujocoBackend(export_dir, **options)
+    if name in ("ur", "franka"):
+        if not address:
+            raise InvalidConfig(f"--backend {name} needs --address (the robot's IP address)")
+        return UrRtdeBackend(address) if name == "ur" else FrankaBackend(address)
+    raise InvalidConfig(f"unknown backend {name!r}; accepted: {', '.join(BACKENDS)}")

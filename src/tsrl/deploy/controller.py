@@ -1,0 +1,402 @@
+"""The deployment runtime: an exported policy driving joint targets, behind the safety layer.
+
+`Controller.from_export(DIR)` verifies the folder (tsrl.deploy.contract) and builds, from its copies,
+the run's own environment pieces (tsrl.deploy.exported): the step's task maps, the goal, the action
+map and the IK map, evaluated on a MjData of the controller's own with kinematics only (no physics).
+One policy step, `act(q, qd, objects, goal, t=...)`:
+
+1. guards: a joint reading or object pose with NaN/inf, a missing object, a state older than
+   `max_state_age` or not newer than the last one: hold (stop as fast as the limits allow) and report;
+2. features: the measured state written into the model (arm qpos and qvel, objects, goal markers,
+   the last suction command), `mj_kinematics` + `mj_comPos`, the env's step maps evaluated once;
+3. the policy (onnxruntime; normaliser inside); a non-finite action: hold and report; the action
+   clipped to [-1, 1], then the optional first-order filter;
+4. the IK step (the env's own: `ActionMap.ik_target`, one damped least-squares step with the run's
+   IK options), the TCP target within the task's workspace box;
+5. the joint limiter (tsrl.deploy.safety): the target within the joint limits (less a margin); the
+   servo-rate commands from `interpolate(t)` within the speed and acceleration limits.
+
+Every step's inputs, features, action, targets and faults are in `controller.last` (a `Cycle`).
+Imports numpy, mujoco and onnxruntime only (never torch or stable-baselines3).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..envs import TaskEnv
+from ..exceptions import InvalidConfig
+from ..ik import DlsSolver, IKOptions
+from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
+from .contract import POLICY, read_contract
+from .exported import exported_env
+from .policy import OnnxPolicy
+from .safety import JOINT_LIMIT, JointLimiter
+
+#: Faults a step reports (`Cycle.faults`); those in HOLDS make it hold instead of acting.
+NONFINITE_STATE = "nonfinite_state"
+MISSING_OBJECT = "missing_object"
+STALE_STATE = "stale_state"
+NONFINITE_GOAL = "nonfinite_goal"
+NONFINITE_ACTION = "nonfinite_action"
+GOAL_OUTSIDE_WORKSPACE = "goal_outside_workspace"
+WORKSPACE_CLIP = "workspace_clip"
+HOLDS = frozenset({NONFINITE_STATE, MISSING_OBJECT, STALE_STATE, NONFINITE_GOAL, NONFINITE_ACTION})
+
+
+@dataclass(frozen=True)
+class ControllerOptions:
+    """Run-time settings of a Controller (the contract fixes everything else)."""
+
+    speed_scale: float = 1.0
+    """Scales the contract's joint speed and acceleration limits, in (0, 1] (0.25 for a first slow run)."""
+    joint_margin: float = 0.01
+    """Distance [rad or m] commands keep from each joint limit."""
+    max_state_age: float | None = None
+    """A state measured longer ago than this [s] is stale: hold. None: half a control period."""
+    action_filter: float = 0.0
+    """Time constant [s] of a first-order filter on the policy's action; 0: no filter."""
+    servo_period: float | None = None
+    """Period [s] of `interpolate` (the backend's); None: the model's physics timestep."""
+
+    def __post_init__(self) -> None:
+        if not 0 < self.speed_scale <= 1:
+            raise InvalidConfig(f"speed_scale must be in (0, 1]; got {self.speed_scale}")
+        if not self.joint_margin >= 0:
+            raise InvalidConfig(f"joint_margin must be >= 0; got {self.joint_margin}")
+        if self.max_state_age is not None and not self.max_state_age > 0:
+            raise InvalidConfig(f"max_state_age must be > 0 s; got {self.max_state_age}")
+        if not self.action_filter >= 0:
+            raise InvalidConfig(f"action_filter must be >= 0 s; got {self.action_filter}")
+        if self.servo_period is not None and not self.servo_period > 0:
+            raise InvalidConfig(f"servo_period must be > 0 s; got {self.servo_period}")
+
+
+@dataclass
+class Cycle:
+    """One policy step of the controller: what it read, computed and commanded (copies)."""
+
+    t: float
+    stamp: float | None
+    q: np.ndarray
+    qd: np.ndarray
+    objects: dict[str, np.ndarray]
+    goal: np.ndarray
+    observation: np.ndarray | None = None
+    achieved_goal: np.ndarray | None = None
+    desired_goal: np.ndarray | None = None
+    action: np.ndarray | None = None  # the policy's output
+    applied_action: np.ndarray | None = None  # clipped to [-1, 1] and filtered
+    ik_target: np.ndarray | None = None
+    q_ik: np.ndarray | None = None
+    q_target: np.ndarray | None = None
+    suction: bool | None = None
+    faults: tuple[str, ...] = ()
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def held(self) -> bool:
+        return any(f in HOLDS for f in self.faults)
+
+
+class Controller:
+    """An exported policy with its features, IK and safety layer (module docstring).
+
+    Build it with `Controller.from_export(DIR)`.
+    """
+
+    def __init__(self, folder: Path, contract: dict[str, Any], env: TaskEnv, options: ControllerOptions):
+        self.folder, self.contract, self.options = folder, contract, options
+        self.env = env
+        model = self.model = env.model
+        robot = contract["robot"]
+        #: Joint names in the order of every joint vector the controller reads and writes.
+        self.joint_names: tuple[str, ...] = tuple(robot["joints"])
+        self.n = len(self.joint_names)
+        self.control_period: float = float(contract["task"]["control_period_s"])
+        self.servo_period: float = float(options.servo_period or model.opt.timestep)
+        self.max_state_age = options.max_state_age or self.control_period / 2
+        self.data = mujoco.MjData(model)
+        env.bound_robot.reset_to_home(model, self.data)
+        self._qpos = arm_qpos_indices(model, self.joint_names)
+        self._dofs = arm_dof_indices(model, self.joint_names)
+        self._objects: dict[str, tuple[int, int]] = {}
+        for obj in env.task.objects:
+            joint = model.body_jntadr[name_to_id(model, "body", obj.body)]
+            self._objects[obj.body] = (int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint]))
+        self._suction_ctrl = env.bound_robot.suction_ctrl if contract["action"]["suction"] else None
+        policy = contract["policy"]
+        self.policy = OnnxPolicy(folder / POLICY, tuple(i["name"] for i in policy["inputs"]))
+        self._ik = None
+        if contract["ik"] is not None and env.action_map.ik_map is not None:
+            options_ = IKOptions(**contract["ik"]["options"])
+            self._ik = DlsSolver(model, env.action_map.ik_map, self.joint_names, options_)
+        limits = np.asarray(robot["joint_limits"], dtype=np.float64)
+        scale = options.speed_scale
+        self.limiter = JointLimiter(
+            limits[:, 0] + options.joint_margin,
+            limits[:, 1] - options.joint_margin,
+            np.asarray(robot["max_joint_speed"]) * scale,
+            np.asarray(robot["max_joint_acceleration"]) * scale,
+            self.servo_period,
+            self.control_period,
+        )
+        ws = contract["workspace"]
+        self.workspace: tuple[np.ndarray, np.ndarray] | None = (
+            (np.asarray(ws["low"], dtype=np.float64), np.asarray(ws["high"], dtype=np.float64))
+            if ws
+            else None
+        )
+        # The TCP position part: its action columns, IK-target rows and step, to report workspace clips.
+        self._tcp_part: tuple[slice, slice, float] | None = None
+        if self.workspace is not None and env.action_map.ik_map is not None:
+            rows = list(env.action_map.ik_map.slices.values())
+            for i, part in enumerate(contract["action"]["parts"]):
+                low = part.get("low")
+                if part.get("step") is not None and low is not None and np.allclose(low, ws["low"]):
+                    self._tcp_part = (slice(*part["columns"]), rows[i], float(part["step"]))
+        self._alpha = math.exp(-self.control_period / options.action_filter) if options.action_filter else 0.0
+        self._filtered: np.ndarray | None = None
+        self._goal = np.zeros(env.goal.dim)
+        self._goal_set = False
+        self._suction = False
+        self._last_stamp: float | None = None
+        self._goal_sampler: TaskEnv | None = None
+        self.last: Cycle | None = None
+
+    @classmethod
+    def from_export(cls, folder: Path | str, options: ControllerOptions | None = None) -> Controller:
+        """The controller of an export folder, after every file's sha256 and the contract's version
+        are checked (ContractError: one line naming the file and what was expected)."""
+        folder = Path(folder)
+        contract = read_contract(folder)
+        return cls(folder, contract, exported_env(folder, contract), options or ControllerOptions())
+
+    # -- episode ----------------------------------------------------------------------------------
+    def reset(self, joint_positions: ArrayLike, t: float, goal: ArrayLike | None = None) -> None:
+        """Starts an episode at rest at the measured joint positions (n,) at time t [s], optionally with
+        its goal (g,); the filter and the suction command are reset."""
+        q = self._joints("joint_positions", joint_positions)
+        if not np.isfinite(q).all():
+            raise InvalidConfig(f"reset: joint positions must be finite; got {q.tolist()}")
+        self.limiter.reset(q, t)
+        self._filtered = None
+        self._suction = False
+        self._last_stamp = None
+        if goal is not None:
+            self.set_goal(goal)
+
+    def set_goal(self, goal: ArrayLike) -> None:
+        """The desired goal (g,) as the environment emits it (positions [m] in the world frame, then
+        any orientation (w, x, y, z)); the goal's penalty columns, if any, may be left out."""
+        g = np.asarray(goal, dtype=np.float64).reshape(-1)
+        dim = self.env.goal.dim
+        penalties = len(self.env.goal.penalties)
+        if g.size == dim - penalties:
+            g = np.concatenate([g, np.zeros(penalties)])  # a penalty's desired value is 0
+        if g.shape != (dim,):
+            raise InvalidConfig(f"goal has {g.size} values; the contract's goal has {dim}")
+        self._goal = g
+        self._goal_set = True
+
+    def sample_goal(self, seed: int) -> np.ndarray:
+        """A goal (g,) drawn as the task draws it at reset with this seed (the same as `tsrl evaluate`'s
+        episode with that seed)."""
+        if self._goal_sampler is None:
+            self._goal_sampler = exported_env(self.folder, self.contract)
+        obs, _ = self._goal_sampler.reset(seed=seed)
+        return obs["desired_goal"].copy()
+
+    # -- one policy step ------------------------------------------------------------------------------
+    def act(
+        self,
+        joint_positions: ArrayLike,
+        joint_velocities: ArrayLike,
+        objects: Mapping[str, ArrayLike] | None = None,
+        goal: ArrayLike | None = None,
+        *,
+        t: float,
+        stamp: float | None = None,
+    ) -> np.ndarray:
+        """One policy step at time t [s] from the state measured at `stamp` [s] (same clock; None: now).
+
+        Args:
+            joint_positions, joint_velocities: (n,) [rad, rad/s] in `joint_names` order.
+            objects: body name -> (7,) pos [m] + quat (w, x, y, z), or (13,) with the free joint's
+                qvel (linear [m/s] in world, angular [rad/s] in the body frame), world frame; one per
+                task object.
+            goal: the desired goal (g,), or None to keep the last one.
+
+        Returns:
+            The joint targets (n,) the limiter now moves toward (within the joint limits); the servo
+            commands come from `interpolate`.
+        """
+        if not self.limiter.ready:
+            raise InvalidConfig("Controller.reset(joint_positions, t) first: it starts at the measured pose")
+        q = self._joints("joint_positions", joint_positions)
+        qd = self._joints("joint_velocities", joint_velocities)
+        if goal is not None:
+            self.set_goal(goal)
+        if not self._goal_set:
+            raise InvalidConfig("no goal: pass goal= to act, reset or set_goal")
+        objs = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in (objects or {}).items()}
+        cycle = Cycle(t, stamp, q, qd, objs, self._goal.copy())
+        self.last = cycle
+        faults = self._guards(cycle)
+        if faults:
+            return self._hold(cycle, faults)
+        observation, achieved, desired = self._features(q, qd, objs)
+        cycle.observation, cycle.achieved_goal, cycle.desired_goal = (
+            observation.copy(),
+            achieved.copy(),
+            desired.copy(),
+        )
+        cycle.info = self.env.goal.outcome(achieved, desired)[1]
+        action = self.policy({"observation": observation, "achieved_goal": achieved, "desired_goal": desired})
+        cycle.action = action.copy()
+        if not np.isfinite(action).all():
+            return self._hold(cycle, (NONFINITE_ACTION,))
+        a = np.clip(action, -1.0, 1.0)
+        if self._alpha:
+            self._filtered = (
+                a if self._filtered is None else self._alpha * self._filtered + (1 - self._alpha) * a
+            )
+            a = self._filtered
+        cycle.applied_action = a.copy()
+        found: list[str] = []
+        if self.workspace is not None and not self._goal_within_workspace():
+            found.append(GOAL_OUTSIDE_WORKSPACE)
+        q_ik = self._ik_step(q, a, cycle, found)
+        cycle.q_ik = q_ik.copy()
+        if self._suction_ctrl is not None:
+            self._suction = bool(a[-1] > 0)
+        cycle.suction = self._suction
+        q_target, clipped = self.limiter.set_target(q_ik, t)
+        if clipped:
+            found.append(JOINT_LIMIT)
+        cycle.q_target = q_target
+        cycle.faults = tuple(found)
+        self._last_stamp = stamp
+        return q_target.copy()
+
+    def outcome(
+        self,
+        joint_positions: ArrayLike,
+        joint_velocities: ArrayLike,
+        objects: Mapping[str, ArrayLike] | None = None,
+    ) -> dict[str, Any]:
+        """The task's goal info (is_success, distance [m], ...) of a measured state and the current goal,
+        without acting (e.g. after an episode's last step)."""
+        q = self._joints("joint_positions", joint_positions)
+        qd = self._joints("joint_velocities", joint_velocities)
+        objs = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in (objects or {}).items()}
+        cycle = Cycle(0.0, None, q, qd, objs, self._goal.copy())
+        faults = self._guards(cycle)
+        if faults:
+            return {"is_success": False, "faults": faults}
+        _, achieved, desired = self._features(q, qd, objs)
+        return self.env.goal.outcome(achieved, desired)[1]
+
+    def interpolate(self, t: float) -> np.ndarray:
+        """The servo command (n,) at time t: one servo period further along toward the last target,
+        within the joint, speed and acceleration limits (tsrl.deploy.safety)."""
+        return self.limiter.step(t)
+
+    @property
+    def suction(self) -> bool:
+        """The suction command (on) of the last policy step."""
+        return self._suction
+
+    # -- internals ------------------------------------------------------------------------------------
+    def _joints(self, name: str, value: ArrayLike) -> np.ndarray:
+        v = np.asarray(value, dtype=np.float64).reshape(-1)
+        if v.shape != (self.n,):
+            raise InvalidConfig(f"{name} has {v.size} values; the contract's robot has {self.n} joints")
+        return v
+
+    def _guards(self, cycle: Cycle) -> tuple[str, ...]:
+        faults = []
+        if not (np.isfinite(cycle.q).all() and np.isfinite(cycle.qd).all()):
+            faults.append(NONFINITE_STATE)
+        for body in self._objects:
+            pose = cycle.objects.get(body)
+            if pose is None or pose.size not in (7, 13):
+                faults.append(MISSING_OBJECT)
+            elif not np.isfinite(pose).all():
+                faults.append(NONFINITE_STATE)
+        if not np.isfinite(cycle.goal).all():
+            faults.append(NONFINITE_GOAL)
+        stamp = cycle.stamp
+        if stamp is not None and (
+            not math.isfinite(stamp)
+            or cycle.t - stamp > self.max_state_age
+            or (self._last_stamp is not None and stamp <= self._last_stamp)
+        ):
+            faults.append(STALE_STATE)
+        return tuple(dict.fromkeys(faults))
+
+    def _hold(self, cycle: Cycle, faults: tuple[str, ...]) -> np.ndarray:
+        cycle.q_target = self.limiter.hold(cycle.t)
+        cycle.suction = self._suction  # the suction command stays as it was
+        cycle.faults = faults
+        return cycle.q_target.copy()
+
+    def _features(
+        self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The env's observation, achieved and desired goal (views) of a measured state: the state
+        written into the controller's MjData, kinematics, every step map evaluated once."""
+        self._write_state(q, qd, objects)
+        plan = self.env.plan
+        plan.evaluate(self.model, self.data)
+        return plan.views
+
+    def _write_state(self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray]) -> None:
+        data = self.data
+        data.qpos[self._qpos] = q
+        data.qvel[self._dofs] = qd
+        for body, (qadr, dadr) in self._objects.items():
+            pose = objects[body]
+            data.qpos[qadr : qadr + 7] = pose[:7]
+            data.qvel[dadr : dadr + 6] = pose[7:] if pose.size == 13 else 0.0
+        self.env.goal.place(data, self._goal)
+        if self._suction_ctrl is not None:
+            data.ctrl[self._suction_ctrl] = 1.0 if self._suction else 0.0
+
+    def _goal_within_workspace(self) -> bool:
+        assert self.workspace is not None
+        low, high = self.workspace
+        for part in self.env.goal.parts:
+            p = self._goal[part.position]
+            if (p < low).any() or (p > high).any():
+                return False
+        return True
+
+    def _ik_step(self, q: np.ndarray, a: np.ndarray, cycle: Cycle, found: list[str]) -> np.ndarray:
+        """The joint positions (n,) the env's step would command for action a at q."""
+        action_map = self.env.action_map
+        if self._ik is None:  # joint actions, as TaskEnv steps them: q + joint_step a within the range
+            joint_range = self.env.bound_robot.joint_range
+            step = action_map.spec.joint_step
+            return np.minimum(np.maximum(q + step * a[: self.n], joint_range[:, 0]), joint_range[:, 1])
+        value = self.env.plan.ik_value
+        assert value is not None
+        target = action_map.ik_target(a, value.y)
+        if self._tcp_part is not None and self.workspace is not None:
+            cols, rows, step = self._tcp_part
+            asked = value.y[rows] + step * a[cols]
+            low, high = self.workspace
+            if (asked < low).any() or (asked > high).any():
+                found.append(WORKSPACE_CLIP)
+            np.clip(target[rows], low, high, out=target[rows])  # ActionMap's bounds are the same box
+        cycle.ik_target = target.copy()
+        q_next, _ = self._ik.step(q, value, target)
+        return q_next

@@ -1,0 +1,327 @@
+"""The deploy loop (episodes of a Controller on a RobotBackend), its log, and the replay of a log.
+
+One episode: the backend's reset, the goal; then per control period one policy step (`act` on a
+fresh state) and `control_period / backend.period` servo ticks, each sending `interpolate(t + h)`
+(the position the servos are to reach at the tick's end) and waiting for the next tick. After the
+last step the state is read once more and the episode's success is the task's rule on it.
+
+The log is JSON lines: a header (export folder, contract sha256, backend, options), one record per
+policy step (state, features, action, IK target, joint target, the period's servo commands, faults,
+compute time) and one per episode (success). `replay` recomputes every step from its logged inputs
+with a fresh controller (the commands must come out the same) and renders the logged states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..exceptions import InvalidConfig
+from .backends import MujocoBackend, RobotBackend, check_backend
+from .contract import CONTRACT, sha256
+from .controller import Controller, ControllerOptions, Cycle
+
+#: How the servo commands of a period are made: the limiter's interpolation (always on hardware), or
+#: the policy step's target held for the period as the training environment does (MuJoCo only).
+ServoMode = Literal["interpolate", "hold"]
+
+
+@dataclass
+class EpisodeResult:
+    """One deployed episode."""
+
+    seed: int | None
+    success: bool
+    """The task's success rule on the last measured state (the controller's features)."""
+    true_success: bool | None
+    """The same on the simulator's true state (MuJoCo backend), else None."""
+    distance: float
+    steps: int
+    faults: Counter[str] = field(default_factory=Counter)
+    compute_s: list[float] = field(default_factory=list)
+    """Controller compute time of each policy step (act) [s], wall clock."""
+    interpolate_s: list[float] = field(default_factory=list)
+    """Time of each `interpolate` call [s], wall clock."""
+
+
+class DeployLog:
+    """A JSON-lines log of a deployment (module docstring); `None`-safe helpers for the loop."""
+
+    def __init__(self, path: Path | str, header: dict[str, Any]):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        # Open across the episodes, flushed after every record (a crash keeps what was logged); close().
+        self._file: IO[str] = open(self.path, "w")  # noqa: SIM115
+        self._write({"type": "header", **header})
+
+    def start(self, episode: int, seed: int | None, t: float, q: np.ndarray, goal: np.ndarray) -> None:
+        """An episode's start: the controller's reset at time t from joint positions q with the goal."""
+        self._write({"type": "start", "episode": episode, "seed": seed, "t": t, "q": q, "goal": goal})
+
+    def cycle(
+        self,
+        episode: int,
+        step: int,
+        cycle: Cycle,
+        servo_t: list[float],
+        servo: list[np.ndarray],
+        compute_s: float,
+    ) -> None:
+        """A policy step: the Cycle, then the period's servo calls (times [s] and commands)."""
+        record = {"type": "cycle", "episode": episode, "step": step, "compute_s": compute_s}
+        record |= dataclasses.asdict(cycle)
+        record |= {"servo_t": servo_t, "servo": servo}
+        self._write(record)
+
+    def episode(self, index: int, result: EpisodeResult) -> None:
+        self._write(
+            {
+                "type": "episode",
+                "episode": index,
+                "seed": result.seed,
+                "success": result.success,
+                "true_success": result.true_success,
+                "distance": result.distance,
+                "steps": result.steps,
+                "faults": dict(result.faults),
+            }
+        )
+
+    def close(self) -> None:
+        self._file.close()
+
+    def _write(self, record: dict[str, Any]) -> None:
+        self._file.write(json.dumps(record, default=_jsonable) + "\n")
+        self._file.flush()
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def read_log(path: Path | str) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
+    """(header, start and cycle records in order, episode records) of a deploy log; InvalidConfig naming
+    the file otherwise."""
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+        records = [json.loads(line) for line in lines if line.strip()]
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise InvalidConfig(f"{path}: not a readable deploy log ({err})") from None
+    if not records or records[0].get("type") != "header":
+        raise InvalidConfig(f"{path}: not a deploy log (no header line); write one with `tsrl deploy`")
+    cycles = [r for r in records if r.get("type") in ("start", "cycle")]
+    episodes = [r for r in records if r.get("type") == "episode"]
+    return records[0], cycles, episodes
+
+
+def run_episodes(
+    controller: Controller,
+    backend: RobotBackend,
+    seeds: Sequence[int | None],
+    goals: Sequence[ArrayLike | None] | None = None,
+    log: DeployLog | None = None,
+    servo: ServoMode = "interpolate",
+    dry_run: bool = False,
+) -> list[EpisodeResult]:
+    """Runs one episode per seed (goals[i], or drawn as the task draws it with seeds[i]); see the
+    module docstring. `dry_run`: the backend is a ShadowBackend (nothing is sent), logged alike."""
+    check_backend(backend, controller.contract)
+    if servo == "hold" and not isinstance(backend, MujocoBackend):
+        raise InvalidConfig("--servo hold (the training env's command timing) is for the MuJoCo backend only")
+    ticks = round(controller.control_period / backend.period)
+    if ticks < 1 or not math.isclose(ticks * backend.period, controller.control_period):
+        raise InvalidConfig(
+            f"the control period {controller.control_period} s is not a multiple of the backend's servo "
+            f"period {backend.period} s"
+        )
+    results = []
+    backend.connect()
+    try:
+        for i, seed in enumerate(seeds):
+            goal = goals[i] if goals is not None and goals[i] is not None else None
+            if goal is None:
+                if seed is None:
+                    raise InvalidConfig("an episode needs a goal or a seed to draw one from")
+                goal = controller.sample_goal(seed)
+            result = _episode(controller, backend, i, seed, np.asarray(goal, np.float64), ticks, log, servo)
+            results.append(result)
+            if log is not None:
+                log.episode(i, result)
+    finally:
+        backend.close()
+    return results
+
+
+def _episode(
+    controller: Controller,
+    backend: RobotBackend,
+    index: int,
+    seed: int | None,
+    goal: np.ndarray,
+    ticks: int,
+    log: DeployLog | None,
+    servo: ServoMode,
+) -> EpisodeResult:
+    backend.reset(seed)
+    if isinstance(backend, MujocoBackend):
+        backend.place_goal_marker(goal)
+    state = backend.read_state()
+    controller.reset(state.q, backend.now(), goal)
+    if log is not None:
+        log.start(index, seed, backend.now(), state.q, goal)
+    steps = int(controller.contract["task"]["episode_steps"])
+    result = EpisodeResult(seed, False, None, math.nan, steps)
+    h = backend.period
+    for step in range(steps):
+        state = backend.read_state()
+        t = backend.now()
+        start = time.perf_counter()
+        q_target = controller.act(state.q, state.qd, state.objects, t=t, stamp=state.time)
+        result.compute_s.append(time.perf_counter() - start)
+        cycle = controller.last
+        assert cycle is not None
+        result.faults.update(cycle.faults)
+        times, commands = [], []
+        for _ in range(ticks):
+            t_servo = backend.now() + h  # the command is where the servos are to be at the tick's end
+            start = time.perf_counter()
+            command = controller.interpolate(t_servo)
+            result.interpolate_s.append(time.perf_counter() - start)
+            if servo == "hold":
+                command = q_target
+            times.append(t_servo)
+            commands.append(command)
+            backend.send(command, controller.suction)
+            backend.wait()
+        if log is not None:
+            log.cycle(index, step, cycle, times, commands, result.compute_s[-1])
+    state = backend.read_state()
+    info = controller.outcome(state.q, state.qd, state.objects)
+    result.success = bool(info.get("is_success", False))
+    result.distance = float(info.get("distance", math.nan))
+    if isinstance(backend, MujocoBackend):
+        result.true_success = bool(backend.outcome()["is_success"])
+    return result
+
+
+def log_header(
+    export_dir: Path, backend: RobotBackend, options: ControllerOptions, extra: dict[str, Any]
+) -> dict[str, Any]:
+    """The header of a deploy log: what a replay needs to rebuild the controller."""
+    return {
+        "export_dir": str(Path(export_dir).resolve()),
+        "contract_sha256": sha256(Path(export_dir) / CONTRACT),
+        "backend": backend.name,
+        "servo_period_s": backend.period,
+        "options": dataclasses.asdict(options),
+        **extra,
+    }
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """How a replay compared with its log."""
+
+    cycles: int
+    max_target_difference: float
+    """Largest |recomputed - logged| joint target over all steps [rad]."""
+    max_action_difference: float
+    max_servo_difference: float
+    """Largest |recomputed - logged| servo command [rad] (0 for a log of --servo hold)."""
+    video: Path | None
+
+
+def replay(
+    log_path: Path | str, video: Path | None = None, size: tuple[int, int] = (320, 320), every: int = 1
+) -> ReplayResult:
+    """Recomputes every logged policy step and servo command with a fresh controller of the logged
+    export and options (resets and servo ticks at their logged times), and renders the logged states
+    into `video` (a frame every `every` policy steps)."""
+    header, cycles, _ = read_log(log_path)
+    folder = Path(header["export_dir"])
+    if sha256(folder / CONTRACT) != header["contract_sha256"]:
+        raise InvalidConfig(f"{log_path}: the export folder {folder} has changed since the log was written")
+    controller = Controller.from_export(folder, ControllerOptions(**header["options"]))
+    max_target = max_action = max_servo = 0.0
+    n = 0
+    for record in cycles:
+        if record["type"] == "start":
+            controller.reset(record["q"], record["t"], record["goal"])
+            continue
+        n += 1
+        q_target = controller.act(
+            record["q"], record["qd"], record["objects"], record["goal"], t=record["t"], stamp=record["stamp"]
+        )
+        max_target = max(max_target, _difference(q_target, record["q_target"]))
+        cycle = controller.last
+        if cycle is not None and cycle.action is not None and record["action"] is not None:
+            max_action = max(max_action, _difference(cycle.action, record["action"]))
+        for t_servo, logged in zip(record["servo_t"], record["servo"]):
+            command = controller.interpolate(t_servo)
+            if header.get("servo") != "hold":
+                max_servo = max(max_servo, _difference(command, logged))
+    frames = [r for r in cycles if r["type"] == "cycle"][::every]
+    out = _render(controller, frames, video, size, every) if video is not None else None
+    return ReplayResult(n, max_target, max_action, max_servo, out)
+
+
+def _difference(a: Any, b: Any) -> float:
+    """max |a - b| of two arrays; NaN where either has one (a held step's action may be NaN)."""
+    d = np.abs(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64))
+    return (
+        float(np.max(d))
+        if np.isfinite(d).all()
+        else (0.0 if np.array_equal(a, b, equal_nan=True) else math.nan)
+    )
+
+
+def _render(
+    controller: Controller, cycles: list[dict[str, Any]], video: Path, size: tuple[int, int], every: int
+) -> Path:
+    """A frame per given policy step: the logged joint positions, objects and goal, in the exported scene."""
+    import mujoco
+
+    from ..agents.evaluation import write_video
+    from ..rendering import SceneRenderer
+
+    env = controller.env
+    model, data = env.model, mujoco.MjData(env.model)
+    env.bound_robot.reset_to_home(model, data)
+    frames = []
+    with SceneRenderer(model, *size) as renderer:
+        for frame_data in _states(controller, cycles, data):
+            frames.append(renderer.render(frame_data))
+    return write_video(frames, video, max(1, round(1 / (every * controller.control_period))))
+
+
+def _states(controller: Controller, cycles: list[dict[str, Any]], data: Any) -> Iterator[Any]:
+    import mujoco
+
+    model = controller.model
+    for record in cycles:
+        q = np.asarray(record["q"], dtype=np.float64)
+        if not np.isfinite(q).all():
+            continue  # a faulty reading the controller held through: nothing to show
+        data.qpos[controller._qpos] = q
+        for body, (qadr, _) in controller._objects.items():
+            pose = record["objects"].get(body)
+            if pose is not None and np.isfinite(pose).all():
+                data.qpos[qadr : qadr + 7] = pose[:7]
+        controller.env.goal.place(data, np.asarray(record["goal"], dtype=np.float64))
+        mujoco.mj_kinematics(model, data)
+        yield data
