@@ -14,7 +14,7 @@ import contextlib
 import dataclasses
 import signal
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, Protocol
@@ -185,7 +185,7 @@ class Plot:
 
         for run_dir in self.run_dirs:
             load_config(run_dir)  # a clear error for a folder that is not a run
-        print(f"wrote {plot_runs(self.run_dirs, self.out)}")
+        print(f"wrote {plot_runs(list(self.run_dirs), self.out)}")
         return 0
 
 
@@ -262,7 +262,7 @@ class Demos:
 
 
 #: Every `tsrl` command; a new one is a dataclass with run() and an entry here.
-COMMANDS: dict[str, type] = {
+COMMANDS: dict[str, Callable[..., Any]] = {
     "train": Train,
     "evaluate": Evaluate,
     "render": Render,
@@ -276,7 +276,7 @@ COMMANDS: dict[str, type] = {
 
 
 #: Old command names, kept for one release: listed last in --help, each says so when it runs.
-DEPRECATED_COMMANDS: dict[str, type] = {"demo": Demo}
+DEPRECATED_COMMANDS: dict[str, Callable[..., Any]] = {"demo": Demo}
 
 
 class CliError(TsrlError):
