@@ -196,3 +196,25 @@ def test_an_unknown_frame_in_a_task_file_names_the_file(tmp_path):
     with pytest.raises(UnknownName) as err:
         TaskEnv(path)
     assert str(err.value).startswith(f"{path}: ") and "'tpc'" in str(err.value)
+
+
+def test_a_stacking_goal_whose_boxes_overlap_is_one_line_naming_the_key():
+    task = load_task("PandaStack-v0")
+    inside = dataclasses.replace(task, goal=dataclasses.replace(task.goal, offsets=((0.0, 0.0, 0.03),)))
+    with pytest.raises(InvalidConfig) as err:
+        TaskEnv(inside)
+    message = str(err.value)
+    assert "\n" not in message and str(task.source) in message
+    assert "goal.offsets put 'box_b' inside 'box'" in message and "keep the objects apart" in message
+    TaskEnv(task)  # 4 cm up: the boxes touch, one on the other
+
+
+def test_a_stack_task_starts_with_the_boxes_apart_and_its_goals_stacked():
+    env = TaskEnv("PandaStack-v0")
+    for seed in range(30):
+        obs, _ = env.reset(seed=seed)
+        box, box_b = obs["achieved_goal"][:3], obs["achieved_goal"][3:]
+        assert np.linalg.norm(box - box_b) >= 0.08
+        np.testing.assert_allclose(obs["desired_goal"][3:] - obs["desired_goal"][:3], [0, 0, 0.04])
+        for start in (box, box_b):
+            assert np.linalg.norm(obs["desired_goal"][:3] - start) >= 0.1

@@ -78,6 +78,7 @@ class Goal:
                 f"({task.goal.map!r}); give one [x, y, z] offset [m] from the first part per later part"
             )
         self.pose = has_pose
+        _check_parts_apart(model, self.parts, task.goal.offsets)
         self.achieved_maps: list[TaskMap] = list(achieved.parts)
         desired = [
             f"position({p.marker})" + (f", quaternion({p.marker})" if p.quaternion is not None else "")
@@ -272,6 +273,46 @@ def _parts(achieved: Stack, spec: str) -> tuple[GoalPart, ...]:
         else:
             raise InvalidConfig(f"goal.map {spec!r} is not a goal map; {accepted}")
     return tuple(parts)
+
+
+def _check_parts_apart(
+    model: mujoco.MjModel, parts: tuple[GoalPart, ...], offsets: tuple[tuple[float, float, float], ...]
+) -> None:
+    """Refuses goal offsets that put one part's object inside another's (their boxes of half-extents
+    overlapping on every axis at their goals)."""
+    goals = [np.zeros(3), *(np.asarray(o, dtype=np.float64) for o in offsets)]
+    extents = [_half_extents(model, p.frame) for p in parts]
+    for i in range(len(parts)):
+        for j in range(i + 1, len(parts)):
+            a, b = extents[i], extents[j]
+            if a is None or b is None:
+                continue
+            if np.all(np.abs(goals[j] - goals[i]) < a + b - 1e-9):
+                raise InvalidConfig(
+                    f"goal.offsets put {parts[j].frame!r} inside {parts[i].frame!r} at their goals (offset "
+                    f"{(goals[j] - goals[i]).round(4).tolist()} m, half-extents {a.round(4).tolist()} and "
+                    f"{b.round(4).tolist()} m); accepted: offsets that keep the objects apart"
+                )
+
+
+def _half_extents(model: mujoco.MjModel, frame: str) -> np.ndarray | None:
+    """Half-extents (3,) [m] of the box and sphere geoms of the body called `frame` (in its frame), or
+    None where it is no body or has none."""
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame)
+    if body < 0:
+        return None
+    extent = None
+    for g in range(model.body_geomadr[body], model.body_geomadr[body] + model.body_geomnum[body]):
+        kind = int(model.geom_type[g])
+        if kind == int(mujoco.mjtGeom.mjGEOM_BOX):
+            h = model.geom_size[g].copy()
+        elif kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
+            h = np.full(3, model.geom_size[g, 0])
+        else:
+            continue
+        h = np.abs(model.geom_pos[g]) + h
+        extent = h if extent is None else np.maximum(extent, h)
+    return extent
 
 
 def _penalty_map(penalty: Penalty, model: mujoco.MjModel, joints: tuple[str, ...]) -> TaskMap:

@@ -15,7 +15,7 @@ from ..robots import BoundRobot
 from ..taskmaps import parse_spec
 from .goals import Goal, goal_positions
 from .scenes import TARGET_BODY
-from .tasks import ObstacleSampler, OrientationSampler, PositionSampler, Task
+from .tasks import ObjectSampler, ObstacleSampler, OrientationSampler, PositionSampler, Task
 
 
 class Randomizer:
@@ -62,9 +62,9 @@ class Randomizer:
             q = data.qpos[self._arm_qpos] + rng.uniform(-task.start_noise, task.start_noise, self._n_joints)
             data.qpos[self._arm_qpos] = q
             data.ctrl[self._arm_ctrl] = q
-        starts = []
+        starts: list[np.ndarray] = []
         for adr, obj in self._objects:
-            pos = _sample_box(rng, obj.center, obj.half_extent)
+            pos = self._sample_object(rng, obj, starts)
             data.qpos[adr : adr + 7] = [*pos, 1.0, 0.0, 0.0, 0.0]
             starts.append(pos)
         obstacle = self._obstacle
@@ -73,7 +73,7 @@ class Randomizer:
             mujoco.mj_kinematics(self.model, data)
             tcp_start = data.site_xpos[obstacle.tcp_site].copy()
         for _ in range(_GOAL_AND_OBSTACLE_TRIES):
-            goal = self._sample_goal(rng, starts[0] if starts else None, tcp_start)
+            goal = self._sample_goal(rng, starts, tcp_start)
             quat = (
                 self._sample_orientation(rng, *self._orientation) if self._orientation is not None else None
             )
@@ -95,10 +95,25 @@ class Randomizer:
             "goal_clearance or the obstacle's size"
         )
 
-    def _sample_goal(
-        self, rng: np.random.Generator, first_object: np.ndarray | None, tcp_start: np.ndarray | None
+    def _sample_object(
+        self, rng: np.random.Generator, obj: ObjectSampler, placed: list[np.ndarray]
     ) -> np.ndarray:
-        """The first goal part's position (3,): drawn again while too close to the first object's start
+        """An object's start position (3,): drawn again while closer than its `min_separation` to an
+        object placed before it (at most _GOAL_TRIES draws)."""
+        for _ in range(_GOAL_TRIES):
+            pos = _sample_box(rng, obj.center, obj.half_extent)
+            if all(np.linalg.norm(pos - p) >= obj.min_separation for p in placed):
+                return pos
+        raise InvalidConfig(
+            f"{self.task.source or self.task.name}: objects: min_separation = {obj.min_separation} m of "
+            f"{obj.body!r}: no start in {_GOAL_TRIES} draws is that far from the objects placed before it; "
+            "lower it or widen the objects' half_extent"
+        )
+
+    def _sample_goal(
+        self, rng: np.random.Generator, objects: list[np.ndarray], tcp_start: np.ndarray | None
+    ) -> np.ndarray:
+        """The first goal part's position (3,): drawn again while too close to an object's start
         (`min_distance`) or, with an obstacle, to the TCP's start (at most _GOAL_TRIES draws)."""
         p: PositionSampler = self.task.goal.position
         rejected_by = ""
@@ -107,7 +122,7 @@ class Randomizer:
             if p.lift_probability > 0:
                 lift = rng.uniform(0.0, p.max_lift) if rng.uniform() < p.lift_probability else 0.0
                 goal[2] = goal[2] + lift
-            if first_object is not None and np.linalg.norm(goal - first_object) < p.min_distance:
+            if any(np.linalg.norm(goal - start) < p.min_distance for start in objects):
                 rejected_by = f"goal.position.min_distance = {p.min_distance}"
                 continue
             if (

@@ -32,7 +32,7 @@ class PositionSampler:
         half_extent: half-extent [m] per axis; an axis with 0 is not sampled (stays at the centre).
         lift_probability: probability that a goal is lifted above the box by uniform(0, max_lift).
         max_lift: largest lift [m].
-        min_distance: goals closer than this [m] to the first object's start are drawn again.
+        min_distance: goals closer than this [m] to an object's start are drawn again.
     """
 
     center: tuple[float, float, float]
@@ -127,11 +127,13 @@ class ObjectSampler:
     Attributes:
         body: the body's name (it must have a free joint).
         center: centre of the box [m]; half_extent: per axis, 0 = not sampled.
+        min_separation: drawn again while closer than this [m] to an object placed before it.
     """
 
     body: str
     center: tuple[float, float, float]
     half_extent: tuple[float, float, float]
+    min_separation: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -317,6 +319,7 @@ BUILTIN_TASKS: dict[str, str] = {
     "PandaObstacleReach-v1": "panda_obstacle_reach_v1.toml",
     "PandaPush-v0": "panda_push.toml",
     "PandaPickPlaceGripper-v0": "panda_pick_place_gripper.toml",
+    "PandaStack-v0": "panda_stack.toml",
 }
 
 
