@@ -60,6 +60,9 @@ class Train:
         if self.resume is None:
             check_env_id(self.config.env_id)
             _check_env_options(self.config)
+            from .agents.init_from import check_init_from
+
+            check_init_from(self.config)
         else:
             check_not_locked(self.resume)
         from .agents.training import TrainingInterrupted, resume, train
@@ -111,27 +114,57 @@ class Train:
 
 @dataclass(frozen=True)
 class Evaluate:
-    """Success rate and final distance of a run's newest usable policy."""
+    """Success rate and final distance of a run's newest usable policy, on its own task or another of
+    the same layout (another arm), or over a swept perturbation (a robustness profile)."""
 
     run_dir: Positional[RunDir]
-    """A run folder written by `tsrl train`."""
+    """A run folder written by `tsrl train`; with --perturb also an experiment's results folder (each of
+    its runs; IQM and interval across seeds per configuration)."""
     episodes: int = 50
     """Deterministic episodes, each with its own seed."""
     seed: int | None = None
     """Seed of the episode seeds (default: the run's)."""
+    env: str | None = None
+    """Evaluate on this registered environment instead of the run's own (same layout: observation rows,
+    goal rows, action parts and control period; checked first)."""
+    task: Annotated[Path | None, arg(metavar="FILE")] = None
+    """Evaluate on this task file instead (same layout)."""
+    perturb: Annotated[str | None, arg(metavar="KEY=V1,V2,...")] = None
+    """Sweep one [randomize] key (docs/tasks.md) over the evaluated task: a scale's value v is [v, v]
+    (servo_gain=0.5,1,2), a magnitude as given (observation_noise=0,0.005,0.01); writes a CSV table
+    and a plot (success against the value) and prints the table."""
+    out: Annotated[Path | None, arg(metavar="FILE.csv")] = None
+    """The table of --perturb (its plot beside it, .png); default RUN_DIR/perturb__KEY[__ENV].csv."""
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
             raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
+        if self.out is not None and self.perturb is None:
+            raise InvalidConfig("--out names the table of --perturb; give --perturb KEY=V1,V2,...")
 
     def run(self) -> int:
-        load_config(self.run_dir)  # a clear error before torch loads
+        from .agents.transfer import check_layout, eval_task, parse_perturb, sweep, target_env
+
+        # Bad input is one line before torch loads: the run, the target's layout, each swept value.
+        perturbation = parse_perturb(self.perturb) if self.perturb is not None else None
+        target = target_env(self.env, self.task)
+        if perturbation is None or (self.run_dir / CONFIG_FILE).is_file():
+            cfg = load_config(self.run_dir)
+            base = eval_task(cfg, target)
+            for t in [base] if perturbation is None else sweep(base, perturbation):
+                check_layout(cfg, t)
+        if perturbation is not None:
+            from .experiments.evaluations import write_profile
+
+            for line in write_profile(self.run_dir, perturbation, self.episodes, self.seed, target, self.out):
+                print(line)
+            return 0
         from .agents.evaluation import evaluate_run
 
-        out = evaluate_run(self.run_dir, self.episodes, self.seed)
+        out = evaluate_run(self.run_dir, self.episodes, self.seed, env_id=target)
         r = out.result
         print(
-            f"{self.run_dir} ({out.env_steps} env steps): success rate {r.success_rate:.2f} "
+            f"{self.run_dir} ({out.env_steps} env steps) on {out.task}: success rate {r.success_rate:.2f} "
             f"({round(r.success_rate * r.episodes)}/{r.episodes} episodes), "
             f"mean final distance {r.mean_final_distance:.4f} m"
         )

@@ -221,10 +221,18 @@ class TrainConfig:
     """Torch CPU threads; 1 is fastest for [256, 256] MLPs with batches of 256."""
     agent: OmitArgPrefixes[AgentConfig] = field(default_factory=AgentConfig)
     """Algorithm and HER settings."""
+    init_from: Annotated[str | None, arg(metavar="RUN_DIR")] = None
+    """Start from this run's networks (actor, critic and their targets) and observation normaliser, its
+    newest usable checkpoint: a run of the same algorithm, network sizes, policy inputs and layout
+    (another arm's; tsrl.agents.init_from). The replay buffer starts empty; demonstrations may be added."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.env_id, str) or not self.env_id:
             raise InvalidConfig(f"env_id must be a registered environment id; got {self.env_id!r}")
+        if self.init_from is not None:
+            if not isinstance(self.init_from, str) or not self.init_from:
+                raise InvalidConfig(f"init_from must be a run folder; got {self.init_from!r}")
+            object.__setattr__(self, "init_from", str(Path(self.init_from).expanduser().resolve()))
         if self.is_task_file:
             from ..envs import load_task
 
@@ -284,10 +292,11 @@ class TrainConfig:
 
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
-        (DemoConfig.active) `__demos`.
+        (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
+        suffix += "__init" if self.init_from is not None else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

@@ -20,12 +20,11 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from ..envs.registration import TASK_ENV_ID
-from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_policy, usable_checkpoint
 from .config import TrainConfig
 from .factory import ALGO_CLASSES, make_env
 from .run_folder import NotARunFolder, load_config
-from .transfer import EvalTask, check_layout, eval_task
+from .transfer import EvalTask, check_layout, eval_task, target_env
 
 #: Evaluation seeds are drawn from a stream of their own, apart from training's episode seeds.
 _EVAL_STREAM = 0xE7A1
@@ -129,16 +128,6 @@ def load_run_policy(run_dir: Path) -> tuple[TrainConfig, BaseAlgorithm, VecNorma
         raise NotARunFolder(run_dir, "no checkpoint yet")
     model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
     return cfg, model, normalizer, checkpoint
-
-
-def target_env(env_id: str | None = None, task: str | Path | None = None) -> str | None:
-    """The one evaluated environment of `env_id` (a registered id) or `task` (a task file), None for
-    the run's own; both given is an error."""
-    if env_id is not None and task is not None:
-        raise InvalidConfig("give --env or --task, not both")
-    if task is not None and not str(task).endswith(".toml"):
-        raise InvalidConfig(f"--task {task}: expected a task file (*.toml); registered ids go to --env")
-    return str(task) if task is not None else env_id
 
 
 def evaluate_run(

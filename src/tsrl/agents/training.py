@@ -34,6 +34,7 @@ from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
+from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
 from .run_folder import (
     CONFIG_FILE,
@@ -76,6 +77,7 @@ def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> P
             f"run folder {run_dir} already exists; continue it with `tsrl train --resume {run_dir}` "
             "or choose another --out-dir"
         )
+    check_init_from(cfg)  # a source of another algorithm, size or layout: nothing is written
     session = _Session(cfg, run_dir, progress_bar)  # builds the envs first: bad obs/action fail here
     try:
         demos = demo_record(cfg)  # a bad demonstration file fails here, before the run folder exists
@@ -141,6 +143,8 @@ class _Session:
         cfg = self.cfg
         if checkpoint is None:
             model = make_agent(cfg, self.venv)
+            if cfg.init_from is not None:  # the source's networks and normaliser (tsrl.agents.init_from)
+                load_init(cfg, self.run_dir, model, self.normalizer)
             state = RunState(0, 0, 0.0, 0, cfg.checkpoint_freq)
         else:
             model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)

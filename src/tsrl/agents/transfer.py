@@ -13,12 +13,15 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..envs.registration import TASK_ENV_ID
 from ..envs.tasks import RANDOMIZE_MAGNITUDES, RANDOMIZE_SCALES, Task, load_task
 from ..exceptions import InvalidConfig, is_number
 from .config import TASK_FILE_SUFFIX, TrainConfig, check_env_id
+
+if TYPE_CHECKING:
+    from ..envs.base import TaskEnv
 
 #: The `[randomize]` keys a sweep may set: scales (a value v means [v, v]), the added damping (also
 #: [v, v]) and the magnitudes.
@@ -76,6 +79,16 @@ def parse_perturb(text: str) -> Perturbation:
         raise InvalidConfig(f"--perturb: {err}") from None
 
 
+def target_env(env_id: str | None = None, task: str | Path | None = None) -> str | None:
+    """The one evaluated environment of `env_id` (a registered id) or `task` (a task file), None for
+    the run's own; both given is an error."""
+    if env_id is not None and task is not None:
+        raise InvalidConfig("give --env or --task, not both")
+    if task is not None and not str(task).endswith(".toml"):
+        raise InvalidConfig(f"--task {task}: expected a task file (*.toml); registered ids go to --env")
+    return str(task) if task is not None else env_id
+
+
 def base_task(env_id: str) -> Task:
     """The Task of a registered tsrl id or a task file (unknown ids: one line listing the accepted)."""
     import gymnasium as gym
@@ -130,23 +143,49 @@ def sweep(target: EvalTask, perturbation: Perturbation) -> list[EvalTask]:
 
 
 def check_layout(cfg: TrainConfig, target: EvalTask) -> None:
-    """Raises InvalidConfig, one line naming the first differing row or part, unless `target` has the
-    layout the run's policy was trained on (tsrl.envs.layout)."""
+    """Raises InvalidConfig, one line naming the first differing row or part, unless `target` (under the
+    run's observation and action) has the layout the run's policy was trained on (tsrl.envs.layout)."""
+    _check(cfg.gym_id, cfg.env_kwargs, _name(cfg.env_id), TASK_ENV_ID, target.env_kwargs(cfg), target.name)
+
+
+def check_run_layouts(trained: TrainConfig, other: TrainConfig) -> None:
+    """Raises InvalidConfig, as check_layout, unless the envs of two runs (each with its own observation
+    and action) share one layout."""
+    _check(
+        trained.gym_id,
+        trained.env_kwargs,
+        _name(trained.env_id),
+        other.gym_id,
+        other.env_kwargs,
+        _name(other.env_id),
+    )
+
+
+def _check(
+    gym_a: str, kwargs_a: dict[str, Any], name_a: str, gym_b: str, kwargs_b: dict[str, Any], name_b: str
+) -> None:
     import gymnasium as gym
 
     from ..envs.layout import check_same_layout, layout
 
-    trained_env = gym.make(cfg.gym_id, **cfg.env_kwargs)
+    env_a = gym.make(gym_a, **kwargs_a)
     try:
-        other_env = gym.make(TASK_ENV_ID, **target.env_kwargs(cfg))
+        env_b = gym.make(gym_b, **kwargs_b)
         try:
-            check_same_layout(
-                layout(trained_env.unwrapped), layout(other_env.unwrapped), _name(cfg.env_id), target.name
-            )
+            check_same_layout(layout(_task_env(env_a)), layout(_task_env(env_b)), name_a, name_b)
         finally:
-            other_env.close()
+            env_b.close()
     finally:
-        trained_env.close()
+        env_a.close()
+
+
+def _task_env(env: Any) -> TaskEnv:
+    """The TaskEnv inside gym.make's wrappers (tsrl ids and tsrl/Task-v0 build one)."""
+    from ..envs.base import TaskEnv
+
+    inner = env.unwrapped
+    assert isinstance(inner, TaskEnv), type(inner)
+    return inner
 
 
 def _name(env_id: str) -> str:

@@ -34,8 +34,9 @@ from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..configs import load_table
 from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
+from . import evaluations as ev
 from . import statistics as st
-from .config import EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
+from .config import EVAL_METRIC, EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
 from .curves import FINAL_EVALS, Curve, curves, row_key
 from .plots import plot_curves, plot_profile
 from .runner import ERROR_FILE
@@ -99,6 +100,7 @@ def variants(cfgs: list[TrainConfig]) -> list[str]:
     for f, cfg in zip(flat, cfgs, strict=True):  # an experiment's [demos] records one file per
         del f["agent.demos.path"]  # (env, obs, action): on or off is the variant (sha256: demos.json)
         f["agent.demos"] = cfg.agent.demos.active
+        f["init_from"] = cfg.init_from is not None  # each seed its own source: started from one or not
     fields = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
     return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
 
@@ -190,17 +192,26 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return summary
 
 
-def compare(all_curves: list[Curve], comparisons: tuple[Comparison, ...]) -> list[dict[str, Any]]:
-    """One row per comparison whose two arms are both in `all_curves` (labelled by config_labels) with
+def compare(
+    all_curves: list[Curve],
+    comparisons: tuple[Comparison, ...],
+    eval_success: dict[str, np.ndarray] | None = None,
+) -> list[dict[str, Any]]:
+    """One row per comparison whose two arms are both in `all_curves` (labelled by config_labels), or
+    for metric "success" both in `eval_success` (evaluation-only arms: per-seed success rates), with
     a value for every seed (AUC needs two evaluations):
     effect IQM(a) - IQM(b) and P(a > b) with intervals, Mann-Whitney p on the registered side, Holm's
     adjustment over all of `comparisons`, minimum detectable effect and verdict."""
     by_label = dict(zip(config_labels([c.key for c in all_curves]), all_curves, strict=True))
     metrics = {label: curve.seed_metrics() for label, curve in by_label.items()}
+    metrics |= {label: {EVAL_METRIC: values} for label, values in (eval_success or {}).items()}
     present = [
         c
         for c in comparisons
-        if all(arm in metrics and not np.isnan(metrics[arm][c.metric]).any() for arm in (c.a, c.b))
+        if all(
+            c.metric in metrics.get(arm, {}) and not np.isnan(metrics[arm][c.metric]).any()
+            for arm in (c.a, c.b)
+        )
     ]
     out, effects = [], []
     for c in present:
@@ -264,18 +275,24 @@ def write_report(results_dir: Path | str) -> list[Path]:
         load_table(Comparison, c, source=results_dir / EXPERIMENT_FILE, where=f"comparisons[{i}]")
         for i, c in enumerate(info.get("comparisons", []))
     )
-    compared = compare(all_curves, comparisons)
+    eval_rows = ev.read_evaluations(results_dir / ev.EVALUATIONS_CSV)
+    order = [label for e in info.get("evaluate", []) for label in _eval_labels(e)]
+    eval_summary = ev.summarize_evaluations(eval_rows, order or None)
+    compared = compare(all_curves, comparisons, ev.per_seed_success(eval_rows))
     name = _experiment_name(results_dir)
     paths = [
         write_csv(results_dir / RESULTS_CSV, rows, RESULT_COLUMNS),
         write_csv(results_dir / SUMMARY_CSV, summary, list(summary[0])),
     ]
+    if eval_summary:
+        paths.append(write_csv(results_dir / ev.EVAL_SUMMARY_CSV, eval_summary, list(eval_summary[0])))
+        paths += ev.plot_profiles(eval_summary, eval_rows, lambda key: results_dir / f"robustness__{key}.png")
     if compared:
         paths.append(write_csv(results_dir / COMPARISONS_CSV, compared, list(compared[0])))
     failed = [d.name for d in run_dirs if (d / ERROR_FILE).is_file()]
     empty = [d.name for d in run_dirs if not read_progress(d)]
     (results_dir / SUMMARY_MD).write_text(
-        markdown_summary(results_dir, summary, compared, len(comparisons), failed, empty)
+        markdown_summary(results_dir, summary, compared, len(comparisons), failed, empty, eval_summary)
     )
     paths.append(results_dir / SUMMARY_MD)
     paths.append(plot_curves(all_curves, results_dir / CURVES_PNG, name))
@@ -326,8 +343,10 @@ def markdown_summary(
     registered: int,
     failed: list[str],
     empty: list[str],
+    eval_summary: list[dict[str, Any]] | None = None,
 ) -> str:
-    """summary.md: the learning curves, the table, the comparisons, and how to read them."""
+    """summary.md: the learning curves, the table, the evaluation-only arms, the comparisons, and how
+    to read them."""
     description = _experiment_info(results_dir).get("description", "")
     lines = [f"# {_experiment_name(results_dir)}", ""] + ([description, ""] if description else [])
     lines += [f"![learning curves]({CURVES_PNG})", ""]
@@ -354,6 +373,12 @@ def markdown_summary(
         cells.append(f"{r['wall_time_s_mean']:.0f}")
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", _HOW_TO_READ.format(resamples=st.RESAMPLES, seed=st.SEED, final=FINAL_EVALS), ""]
+    if eval_summary:
+        lines += (
+            ["## Evaluation-only arms", ""] + ev.markdown_table(eval_summary) + ["", _HOW_TO_READ_EVALS, ""]
+        )
+        keys = sorted({s["perturb_key"] for s in eval_summary if s["perturb_key"]})
+        lines += [f"![success under {key}](robustness__{key}.png)" for key in keys] + [""] * bool(keys)
     if registered:
         lines += ["## Pre-registered comparisons", ""]
         header = [
@@ -406,6 +431,25 @@ def markdown_summary(
         data += f", [{COMPARISONS_CSV}]({COMPARISONS_CSV})"
     lines.append(f"Data: {data}. Regenerate with `tsrl report {results_dir}`.\n")
     return "\n".join(lines)
+
+
+_HOW_TO_READ_EVALS = (
+    "Evaluation-only arms (the experiment file's [[evaluate]]): each seed's final policy of the trained "
+    "arm on the named task (with a swept perturbation, `name@value`), over deterministic episodes whose "
+    "goals no training evaluation saw, the same episodes for every arm of a run; success counts "
+    "info['true_success'] where the task reports it. Success: IQM across seeds of the seeds' success "
+    "rates [95% stratified-bootstrap interval]; mean: their plain mean; seeds >= 0.95: seeds whose own "
+    f"success rate reached it. Data: [{ev.EVALUATIONS_CSV}]({ev.EVALUATIONS_CSV}) (one row per arm and "
+    f"seed), [{ev.EVAL_SUMMARY_CSV}]({ev.EVAL_SUMMARY_CSV})."
+)
+
+
+def _eval_labels(table: dict[str, Any]) -> list[str]:
+    """The arm labels of one [[evaluate]] entry of experiment.json (as Evaluation.labels)."""
+    perturb = table.get("perturb")
+    if not perturb:
+        return [table["name"]]
+    return [f"{table['name']}@{v:g}" for v in perturb["values"]]
 
 
 def _interval(row: dict[str, Any], stat: str) -> str:

@@ -29,7 +29,8 @@ class Experiment:
     """An experiment name (experiments/NAME.toml) or the path of a .toml definition. Its grid (env x obs
     x action x algo x seeds) runs into <out-dir>/<name>/: finished runs are skipped, interrupted ones
     resume from their checkpoints, a failing one is reported (error.txt in its folder) while the others
-    go on; then the report is written (tsrl report)."""
+    go on; then the evaluation-only arms ([[evaluate]]) are evaluated on the finished runs, into
+    evaluations.csv (kept across calls), and the report is written (tsrl report)."""
     workers: Annotated[int | None, arg(metavar="N")] = None
     """Runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray)."""
     ray: Annotated[str | None, arg(metavar="ADDRESS|local")] = None
@@ -85,6 +86,10 @@ def _cmd_experiment(args: Experiment) -> int:
         print("tsrl experiment: interrupted; run it again to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     exp_dir = args.out_dir / exp.name
+    if exp.evaluate:  # the evaluation-only arms, on the runs at their budget
+        from .evaluations import run_evaluations
+
+        run_evaluations(exp, exp_dir, sys.stderr)
     if args.report and any(o.env_steps > 0 for o in outcomes):
         from .aggregate import write_report
 
