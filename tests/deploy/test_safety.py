@@ -17,8 +17,8 @@ V_MAX = np.array([1.0, 2.0, 3.14])
 A_MAX = np.array([5.0, 15.0, 10.0])
 
 
-def limiter() -> JointLimiter:
-    return JointLimiter(LOWER, UPPER, V_MAX, A_MAX, H, T)
+def limiter(ramp: bool = False) -> JointLimiter:
+    return JointLimiter(LOWER, UPPER, V_MAX, A_MAX, H, T, ramp)
 
 
 def assert_within_limits(commands: np.ndarray) -> None:
@@ -30,9 +30,10 @@ def assert_within_limits(commands: np.ndarray) -> None:
     assert (accel <= A_MAX * (1 + 1e-6)).all(), (accel / A_MAX).max()
 
 
-def test_random_targets_holds_and_stalls_stay_within_every_limit():
+@pytest.mark.parametrize("ramp", [False, True])
+def test_random_targets_holds_and_stalls_stay_within_every_limit(ramp):
     rng = np.random.default_rng(0)
-    lim = limiter()
+    lim = limiter(ramp)
     lim.reset(np.zeros(3), 0.0)
     t, next_step, commands = 0.0, 0.0, []
     for _ in range(30_000):
@@ -54,8 +55,13 @@ def test_random_targets_holds_and_stalls_stay_within_every_limit():
     assert_within_limits(np.array(commands))
 
 
-def test_targets_within_the_limits_are_followed_by_linear_interpolation():
+def test_targets_within_the_limits_are_met_at_once_or_by_linear_interpolation():
     lim = limiter()
+    lim.reset(np.zeros(3), 0.0)
+    lim.set_target(np.array([1e-6, -1e-6, 1e-6]), 0.0)  # a step within a tick's speed change
+    np.testing.assert_allclose(lim.step(H), [1e-6, -1e-6, 1e-6], atol=1e-18)
+    np.testing.assert_allclose(lim.step(2 * H), [1e-6, -1e-6, 1e-6], atol=1e-18)  # and held
+    lim = limiter(ramp=True)
     lim.reset(np.zeros(3), 0.0)
     step = np.array([0.0002, -0.0002, 0.0002])  # slow: a speed change of less than a_max h
     lim.set_target(step, 0.0)

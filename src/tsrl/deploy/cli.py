@@ -65,6 +65,8 @@ class Deploy:
     """Scales the contract's joint speed and acceleration limits, in (0, 1] (0.25 for a first slow run)."""
     action_filter: float = 0.0
     """Time constant [s] of a first-order filter on the policy's action; 0: none."""
+    ramp: bool = False
+    """Servo commands ramp to each policy target over the control period (smoother, up to a period late)."""
     servo: Literal["interpolate", "hold"] = "interpolate"
     """interpolate: servo commands from the limiter; hold: the policy target held for the period as in
     training (mujoco only; it does not honour the speed and acceleration limits between ticks)."""
@@ -123,7 +125,10 @@ class Deploy:
             self.backend, self.export_dir, self.address, sim if self.backend == "mujoco" else {}
         )
         options = ControllerOptions(
-            speed_scale=self.speed_scale, action_filter=self.action_filter, servo_period=backend.period
+            speed_scale=self.speed_scale,
+            action_filter=self.action_filter,
+            servo_period=backend.period,
+            ramp=self.ramp,
         )
         controller = Controller.from_export(self.export_dir, options)
         if goal is not None:

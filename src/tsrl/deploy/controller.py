@@ -66,6 +66,9 @@ class ControllerOptions:
     """Time constant [s] of a first-order filter on the policy's action; 0: no filter."""
     servo_period: float | None = None
     """Period [s] of `interpolate` (the backend's); None: the model's physics timestep."""
+    ramp: bool = False
+    """Servo commands ramp to each policy target over the control period (smoother, up to a period
+    late); default: toward the target at once, as fast as the limits allow (as training's servos)."""
 
     def __post_init__(self) -> None:
         if not 0 < self.speed_scale <= 1:
@@ -148,6 +151,7 @@ class Controller:
             np.asarray(robot["max_joint_acceleration"]) * scale,
             self.servo_period,
             self.control_period,
+            options.ramp,
         )
         ws = contract["workspace"]
         self.workspace: tuple[np.ndarray, np.ndarray] | None = (
@@ -264,7 +268,7 @@ class Controller:
         cycle.action = action.copy()
         if not np.isfinite(action).all():
             return self._hold(cycle, (NONFINITE_ACTION,))
-        a = np.clip(action, -1.0, 1.0)
+        a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip costs twice as much
         if self._alpha:
             self._filtered = (
                 a if self._filtered is None else self._alpha * self._filtered + (1 - self._alpha) * a
@@ -396,7 +400,8 @@ class Controller:
             low, high = self.workspace
             if (asked < low).any() or (asked > high).any():
                 found.append(WORKSPACE_CLIP)
-            np.clip(target[rows], low, high, out=target[rows])  # ActionMap's bounds are the same box
+            rows_view = target[rows]  # ActionMap's bounds are the same box: a no-op, kept as the guarantee
+            np.minimum(np.maximum(rows_view, low, out=rows_view), high, out=rows_view)
         cycle.ik_target = target.copy()
         q_next, _ = self._ik.step(q, value, target)
         return q_next

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import shutil
 import warnings
 import xml.etree.ElementTree as ET
@@ -153,10 +154,19 @@ def export_policy(
         contract["files"] = {
             str(p.relative_to(tmp)): sha256(p) for p in sorted(tmp.rglob("*")) if p.is_file()
         }
-        (tmp / CONTRACT).write_text(json.dumps(contract, indent=2) + "\n")
+        (tmp / CONTRACT).write_text(contract_text(contract))
         _check(tmp, contract, env, model, normalizer, keys)
     env.close()
     return out
+
+
+def contract_text(contract: dict[str, Any]) -> str:
+    """contract.json's text: indented, each list of numbers or names on one line."""
+    text = json.dumps(contract, indent=2)
+    flat = re.compile(
+        r"\[\s*((?:-?[\d.eE+-]+|null|true|false|\"[^\"\n]*\")(?:,\s*(?:-?[\d.eE+-]+|null|true|false|\"[^\"\n]*\"))*)\s*\]"
+    )
+    return flat.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",\n")) + "]", text) + "\n"
 
 
 def _write_onnx(actor: _Actor, env: TaskEnv, keys: tuple[str, ...], path: Path) -> None:

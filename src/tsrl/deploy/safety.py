@@ -1,9 +1,11 @@
 """The safety layer's joint limiter: servo-rate joint commands within position, speed and acceleration limits.
 
-A policy step sets a *reference*: from the command's position c0 at that time t_k to the step's
-target q* (within the joint limits), linearly over one control period T, then held:
+A policy step sets a *reference*: the step's target q* (within the joint limits) at once (the
+default: as the training environment sets its servos' targets), or with `ramp` from the command's
+position c0 at that time t_k to q*, linearly over one control period T, then held:
 
-    r(t) = c0 + min((t - t_k) / T, 1) (q* - c0),   v_r = (q* - c0) / T until t_k + T, then 0.
+    r(t) = c0 + min((t - t_k) / T, 1) (q* - c0),   v_r = (q* - c0) / T until t_k + T, then 0
+    (at once: c0 = q*, v_r = 0).
 
 Each servo tick (one call of `step`, period h) moves the command q toward r per joint:
 
@@ -18,7 +20,7 @@ the ticks, `_stop_speed`). Hence, between successive commands, whatever the
 targets and whenever `step` is called: |q_{i+1} - q_i| <= v_max h, |q_{i+1} - 2 q_i + q_{i-1}| <=
 a_max h^2, and lo <= q <= hi (the invariant |v| <= s(distance to the limit ahead) survives a tick of
 full deceleration: s(d - s(d) h) = s(d) - a_max h, as the ticks from s(d) cover d exactly). When the limits allow it the command is the
-reference itself: linear interpolation between policy targets.
+reference itself: the target (or, with `ramp`, linear interpolation between policy targets).
 """
 
 from __future__ import annotations
@@ -36,7 +38,10 @@ class JointLimiter:
         lower, upper: position limits (n,) [rad or m], finite.
         max_speed: (n,) > 0 [rad/s or m/s]; max_acceleration: (n,) > 0 [rad/s^2 or m/s^2].
         servo_period: h [s], the time one `step` advances the command by.
-        control_period: T [s], the time a policy target's reference takes to reach it.
+        control_period: T [s], the time a policy target's reference takes to reach it (ramp).
+        ramp: the reference ramps to each target over T (smooth, it lags the target by up to T);
+            False: the reference is the target at once (the command moves as fast as the limits
+            allow, as close as the limits let it come to the training environment's servo targets).
     """
 
     def __init__(
@@ -47,6 +52,7 @@ class JointLimiter:
         max_acceleration: np.ndarray,
         servo_period: float,
         control_period: float,
+        ramp: bool = False,
     ):
         self.lower = np.asarray(lower, dtype=np.float64).copy()
         self.upper = np.asarray(upper, dtype=np.float64).copy()
@@ -71,6 +77,7 @@ class JointLimiter:
         if not (servo_period > 0 and control_period > 0):
             raise ValueError("servo and control periods must be > 0")
         self.servo_period, self.control_period = float(servo_period), float(control_period)
+        self.ramp = ramp
         h, a = self.servo_period, self.max_acceleration
         self._ah = a * h  # speed change allowed per tick
         self._half_ah = 0.5 * self._ah
@@ -115,11 +122,7 @@ class JointLimiter:
         self._check_ready()
         stop = self.q + self.v * np.abs(self.v) / (2 * self.max_acceleration)
         target = np.minimum(np.maximum(stop, self.lower), self.upper)
-        self._c0[:] = target  # no ramp: the reference is the stop point at once, v_r = 0
-        self._target[:] = target
-        self._delta[:] = 0.0
-        self._v_ref[:] = 0.0
-        self._t_k = float(t)
+        self._set_reference(target, t, ramp=False)  # the stop point at once
         return target.copy()
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -185,10 +188,12 @@ class JointLimiter:
         s += m
         return np.copysign(s, d, out=s)
 
-    def _set_reference(self, target: np.ndarray, t: float) -> None:
-        self._c0[:] = self.q
+    def _set_reference(self, target: np.ndarray, t: float, ramp: bool | None = None) -> None:
+        """The reference from time t: a ramp from the command's position to `target` over one control
+        period, or (ramp False) the target at once; `ramp` None: the limiter's setting."""
+        self._c0[:] = self.q if (self.ramp if ramp is None else ramp) else target
         self._target[:] = target
-        np.subtract(target, self.q, out=self._delta)
+        np.subtract(target, self._c0, out=self._delta)
         np.divide(self._delta, self.control_period, out=self._v_ref)
         self._t_k = float(t)
 
