@@ -218,3 +218,15 @@ def test_a_stack_task_starts_with_the_boxes_apart_and_its_goals_stacked():
         np.testing.assert_allclose(obs["desired_goal"][3:] - obs["desired_goal"][:3], [0, 0, 0.04])
         for start in (box, box_b):
             assert np.linalg.norm(obs["desired_goal"][:3] - start) >= 0.1
+
+
+def test_a_fixture_moves_with_the_goal_and_must_be_a_mocap_body(tmp_path):
+    env = TaskEnv("PandaPegInsert-v0")
+    fixture = env.model.body("fixture").mocapid[0]
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        np.testing.assert_allclose(env.data.mocap_pos[fixture], obs["desired_goal"][:3] + [0.0, 0.0, -0.04])
+    task = load_task("PandaPegInsert-v0")
+    bad = dataclasses.replace(task, fixtures=(dataclasses.replace(task.fixtures[0], body="peg"),))
+    with pytest.raises(InvalidConfig, match="fixture body 'peg' must be a mocap body"):
+        TaskEnv(bad)

@@ -23,6 +23,7 @@ SCENES: dict[str, str] = {
     "panda_gripper_reach": "scenes/panda_gripper_reach.xml",
     "panda_gripper_pick_place": "scenes/panda_gripper_pick_place.xml",
     "panda_gripper_stack": "scenes/panda_gripper_stack.xml",
+    "panda_gripper_peg": "scenes/panda_gripper_peg.xml",
 }
 
 

@@ -45,6 +45,12 @@ class Randomizer:
             if joint < 0 or int(model.jnt_type[joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
                 raise InvalidConfig(f"object {obj.body!r} needs a free joint to be placed at reset")
             self._objects.append((int(model.jnt_qposadr[joint]), obj))
+        self._fixtures: list[tuple[int, np.ndarray]] = []
+        for fixture in task.fixtures:
+            mocap = int(model.body_mocapid[name_to_id(model, "body", fixture.body)])
+            if mocap < 0:
+                raise InvalidConfig(f'fixture body {fixture.body!r} must be a mocap body (mocap="true")')
+            self._fixtures.append((mocap, np.array(fixture.offset, dtype=np.float64)))
         self._obstacle: _Obstacle | None = None
         if task.obstacle is not None:
             o = task.obstacle
@@ -79,6 +85,8 @@ class Randomizer:
             )
             for i, pos in enumerate(goal_positions(goal, task.goal.offsets)):
                 self.goal.place_marker(data, i, pos, quat if i == 0 else None)
+            for mocap, offset in self._fixtures:
+                data.mocap_pos[mocap] = goal + offset
             if (
                 obstacle is None
                 or tcp_start is None

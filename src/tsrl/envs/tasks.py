@@ -137,6 +137,18 @@ class ObjectSampler:
 
 
 @dataclass(frozen=True)
+class FixtureSampler:
+    """A mocap body that moves with the goal at reset: at the first goal part's position plus `offset`.
+
+    Attributes:
+        body: the mocap body (e.g. the fixture a peg goes into); offset: [m], world frame.
+    """
+
+    body: str
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
 class ObstacleSampler:
     """A mocap obstacle placed at reset between the TCP's start and the goal.
 
@@ -235,6 +247,7 @@ class Task:
         goal: the goal map and its sampler.
         success: tolerances, reward convention and penalties.
         objects: free bodies placed at reset.
+        fixtures: mocap bodies placed with the goal at reset.
         obstacle: an obstacle placed between the start and the goal at reset.
         start_noise: uniform noise [rad] added to each arm joint of the home pose at reset (0: none).
         episode_steps: control steps per episode.
@@ -253,6 +266,7 @@ class Task:
     action: ActionSpec | str = "taskspace"
     success: SuccessSpec = field(default_factory=SuccessSpec)
     objects: tuple[ObjectSampler, ...] = ()
+    fixtures: tuple[FixtureSampler, ...] = ()
     obstacle: ObstacleSampler | None = None
     start_noise: float = 0.0
     episode_steps: int = 50
@@ -320,6 +334,7 @@ BUILTIN_TASKS: dict[str, str] = {
     "PandaPush-v0": "panda_push.toml",
     "PandaPickPlaceGripper-v0": "panda_pick_place_gripper.toml",
     "PandaStack-v0": "panda_stack.toml",
+    "PandaPegInsert-v0": "panda_peg_insert.toml",
 }
 
 
@@ -429,6 +444,7 @@ def _fmt(v: Any) -> str:
 __all__ = (
     "BUILTIN_TASKS",
     "ActionPart",
+    "FixtureSampler",
     "GoalSpec",
     "HeldPart",
     "ObjectSampler",
