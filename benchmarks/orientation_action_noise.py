@@ -1,7 +1,7 @@
 """Why the paper's orientation action does not learn pick-and-place here: exploration noise on its three
 scalar products tips the cup over, while the same noise on a cup-down action does not.
 
-The scripted pick-and-place controller (`tsrl.agents.demos.ScriptedPickPlace`) runs closed loop on
+The scripted pick-and-place controller (`tsrl.envs.solvers.PickPlaceSolver`) runs closed loop on
 tsrl/UR5ePickPlace-v0 in two action modes; Gaussian noise of standard deviation sigma, as DDPG's
 exploration adds it (`TrainConfig.action_noise`, 0.2 by default), is added to its action before the env
 clips it to [-1, 1]:
@@ -31,8 +31,8 @@ import mujoco
 import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents.demonstrators import ScriptedPickPlace
 from tsrl.envs.actions import ACTION_PRESETS
+from tsrl.envs.solvers import PickPlaceSolver
 from tsrl.taskmaps import parse_spec
 
 ENV_ID = "tsrl/UR5ePickPlace-v0"
@@ -42,31 +42,31 @@ SCALAR_PRODUCTS = ", ".join(part.map for part in ACTION_PRESETS["taskspace_orien
 
 def run(action: str, sigma: float, episodes: int, noisy_orientation: bool = True) -> tuple[float, np.ndarray]:
     """Success rate and each episode's largest cup tilt [deg] of the noisy scripted controller."""
-    controller = ScriptedPickPlace(ENV_ID, action)
-    env = controller.env  # its own env: noisy actions go to it directly
+    env = gym.make(ENV_ID, action=action)
+    controller = PickPlaceSolver(env.unwrapped)  # reads the positions it needs from the env's state
     tcp = env.unwrapped.model.site(env.unwrapped.robot.tcp).id
     data = env.unwrapped.data
     rng = np.random.default_rng(0)
     successes, tilts = 0, np.zeros(episodes)
     for episode in range(episodes):
-        controller.reset(seed=episode)
+        obs, _ = env.reset(seed=episode)
+        controller.reset(obs)
         info: dict = {}
         for _ in range(env.spec.max_episode_steps):
-            y = controller.obs["observation"]
-            scripted = controller.control({name: y[s] for name, s in controller.slices.items()})
+            # The solver's action before its float32 cast (act() casts): position, held values, suction.
+            y = controller.positions(env.unwrapped.model, data).y
+            scripted = controller.control({name: y[s] for name, s in controller.positions.slices.items()})
             action_vector = np.concatenate([scripted[:3], controller.hold, scripted[3:]])
             noise = sigma * rng.standard_normal(action_vector.shape)
             if not noisy_orientation:
                 noise[3 : 3 + controller.hold.size] = 0.0
-            controller.obs, _, terminated, truncated, info = env.step(
-                (action_vector + noise).astype(np.float32)
-            )
+            obs, _, terminated, truncated, info = env.step((action_vector + noise).astype(np.float32))
             cup_down = -data.site_xmat[tcp].reshape(3, 3)[2, 2]  # -(world z . TCP z)
             tilts[episode] = max(tilts[episode], np.degrees(np.arccos(np.clip(cup_down, -1.0, 1.0))))
             if terminated or truncated:
                 break
         successes += bool(info["is_success"])
-    controller.close()
+    env.close()
     return successes / episodes, tilts
 
 

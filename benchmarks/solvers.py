@@ -1,12 +1,14 @@
-"""How many sampled goals do the scripted solvers of the pose and obstacle tasks reach? A table of
-success rates over N seeded episodes per task (seeds 0..N-1) on both robots, and for the obstacle
-tasks the episodes in which the obstacle is in contact at reset (before any action), and those in which
-the robot touched it (a penalised step): at all, already on the first step, and still on the last
-(resting at the goal).
+"""How many sampled goals do the scripted solvers of the built-in tasks reach? A table of success rates
+over N seeded episodes per task (seeds 0..N-1) for every task of the solver registry
+(`tsrl.envs.solvers.SOLVERS`, both robots), in the task's own action, and for the obstacle tasks the
+episodes in which the obstacle is in contact at reset (before any action), and those in which the robot
+touched it (a penalised step): at all, already on the first step, and still on the last (resting at the
+goal).
 
-The tests (`tests/envs/test_tasks.py`) assert at least 99 of 100; this prints the rate on more goals.
+The tests (`tests/envs/test_tasks.py`, `tests/envs/test_pick_place_scripted.py`) assert at least 99 (95
+for pick-and-place) of 100; this prints the rate on more goals.
 
-    python benchmarks/solvers.py [--episodes 1000]
+    python benchmarks/solvers.py [--episodes 1000] [--tasks UR5ePoseReach-v0 ...]
 """
 
 from __future__ import annotations
@@ -19,16 +21,7 @@ import mujoco
 import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver
-
-SOLVERS = {
-    "tsrl/UR5ePoseReach-v0": PoseReachSolver,
-    "tsrl/PandaPoseReach-v0": PoseReachSolver,
-    "tsrl/UR5eObstacleReach-v0": ObstacleReachSolver,
-    "tsrl/PandaObstacleReach-v0": ObstacleReachSolver,
-    "tsrl/UR5eObstacleReach-v1": ObstacleReachSolver,
-    "tsrl/PandaObstacleReach-v1": ObstacleReachSolver,
-}
+from tsrl.envs.solvers import SOLVERS
 
 
 def run(env_id: str, episodes: int) -> tuple[int, np.ndarray, list[int]]:
@@ -40,7 +33,7 @@ def run(env_id: str, episodes: int) -> tuple[int, np.ndarray, list[int]]:
         env = gym.make(env_id)
     base = env.unwrapped
     obstacle = base.model.geom(base.task.obstacle.geom).id if base.task.obstacle else None
-    solver = SOLVERS[env_id](base)
+    solver = SOLVERS[env_id.removeprefix("tsrl/")](base)
     successes, touched, failed = 0, np.zeros(4, dtype=int), []
     for seed in range(episodes):
         obs, _ = env.reset(seed=seed)
@@ -64,13 +57,17 @@ def run(env_id: str, episodes: int) -> tuple[int, np.ndarray, list[int]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=1000, help="seeded episodes per task (seeds 0..N-1)")
+    parser.add_argument(
+        "--tasks", nargs="+", choices=list(SOLVERS), default=list(SOLVERS), help="built-in tasks"
+    )
     args = parser.parse_args()
     print(
         "| task | solver | success | episodes: obstacle in contact at reset; touched at all / on step 1 / on the last "
         "| failed seeds |"
     )
     print("| --- | --- | ---: | ---: | --- |")
-    for env_id, solver in SOLVERS.items():
+    for name in args.tasks:
+        env_id, solver = f"tsrl/{name}", SOLVERS[name]
         successes, touched, failed = run(env_id, args.episodes)
         rate = f"{successes}/{args.episodes} ({100 * successes / args.episodes:.1f}%)"
         touching = f"{touched[0]}; " + " / ".join(map(str, touched[1:])) if "Obstacle" in env_id else "–"

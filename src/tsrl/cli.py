@@ -260,16 +260,16 @@ class Demos:
     """Record demonstration episodes for `tsrl train --demos FILE` (tsrl.agents.demonstrators)."""
 
     command: Positional[Literal["record"]]
-    """record: a demonstrator's successful episodes into a .npz file (the environment's scripted
-    controller, reach or pick-and-place, or a trained run's policy with --policy)."""
+    """record: a demonstrator's successful episodes into a .npz file (the built-in task's scripted
+    solver, tsrl.envs.solvers.SOLVERS, or a trained run's policy with --policy)."""
     out: Path
     """The .npz file to write."""
     env: str = "tsrl/UR5ePickPlace-v0"
     """Environment id (ignored with --policy)."""
     obs: str = "fs1"
     """Observation preset or spec of the agent that will train on the demonstrations."""
-    action: str = "taskspace"
-    """Action mode."""
+    action: str = "task"
+    """Action mode: the task's own (task), or a built-in mode its solver acts in (taskspace, ...)."""
     episodes: int = 100
     """Episodes to keep."""
     policy: Annotated[Path | None, arg(metavar="RUN_DIR")] = None

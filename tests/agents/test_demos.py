@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import pickle
+import re
 import shutil
 import signal
 import subprocess
@@ -35,7 +36,11 @@ from tsrl.agents.demo_files import (
 from tsrl.agents.demonstrators import demo_seeds, record_demos
 from tsrl.agents.demos import DemoReplayBuffer, q_filtered_bc_loss
 from tsrl.agents.run_folder import latest_checkpoint
+from tsrl.cli import main
+from tsrl.envs import BUILTIN_TASKS
 from tsrl.envs.keys import OBS_KEYS
+from tsrl.envs.solvers import SOLVERS, solver_for
+from tsrl.exceptions import InvalidConfig
 
 REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"
 
@@ -127,6 +132,45 @@ def test_cli_records_a_demo_file(tmp_path):
     result = run_tsrl("demos", "record", "--env", REACH, "--episodes", "2", "--out", str(out))
     assert result.returncode == 0, result.stderr
     assert "2 episodes" in result.stdout and load_demos(out).n_episodes == 2
+
+
+@pytest.mark.parametrize("name", list(SOLVERS))
+def test_demos_record_works_for_every_built_in_task_with_a_solver(name, tmp_path, capsys):
+    """`tsrl demos record --env tsrl/<task>` with its defaults (obs fs1, the task's own action): two
+    successful episodes of the task's solver whose stored actions, replayed, give the stored
+    observations."""
+    env_id, out = f"tsrl/{name}", tmp_path / f"{name}.npz"
+    assert main(["demos", "record", "--env", env_id, "--episodes", "2", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {out}: 2 episodes")
+    env = gym.make(env_id, obs="fs1")
+    d = load_demos(out, DemoSpec.of(env))
+    assert d.n_episodes == 2 and d.is_success[:, -1].all() and d.meta["demonstrator"] == SOLVERS[name].name
+    for i in range(2):
+        obs, _ = env.reset(seed=int(d.seeds[i]))
+        for t in range(d.episode_steps):
+            for key in OBS_KEYS:
+                np.testing.assert_array_equal(obs[key], getattr(d, key)[i, t])
+            obs, *_ = env.step(d.actions[i, t])
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("env_id", "action", "expected"),
+    [
+        ("tsrl/Task-v0", "task", "no scripted solver for 'tsrl/Task-v0'; solved: tsrl/UR5eReach-v0"),
+        (PICK, "joint", "pick-place solver of tsrl/UR5ePickPlace-v0 acts in action taskspace or taskspace_orient;"),
+        ("tsrl/UR5ePoseReach-v0", "taskspace", "acts in action task (its task's own action); got 'taskspace'"),
+    ],
+)  # fmt: skip
+def test_a_task_without_a_solver_for_the_action_is_one_error_naming_what_is_accepted(
+    env_id, action, expected
+):
+    assert set(SOLVERS) <= set(BUILTIN_TASKS)
+    with pytest.raises(InvalidConfig, match=re.escape(expected)):
+        solver_for(env_id, action)
+    if env_id != "tsrl/Task-v0":  # the recorder raises the same error
+        with pytest.raises(InvalidConfig, match=re.escape(expected)):
+            record_demos(env_id, 1, action=action)
 
 
 def corrupt(path: Path, out: Path, **changes: object) -> Path:

@@ -1,5 +1,6 @@
-"""Pick-and-place is solvable on both arms: the scripted controller (tsrl.agents.demos, acting on the
-public task-map API) succeeds in >= 95 of 100 seeded episodes."""
+"""Pick-and-place is solvable on both arms: the scripted solver (tsrl.envs.solvers.PickPlaceSolver,
+reading task maps on the environment's state), recording through tsrl.agents.demonstrators, succeeds
+in >= 95 of 100 seeded episodes."""
 
 import pytest
 

@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env
 
 import tsrl
 from tsrl.envs import TASK_ENV_ID, load_task
-from tsrl.envs.solvers import ObstacleReachSolver, PoseReachSolver, PushSolver
+from tsrl.envs.solvers import SOLVERS, ObstacleReachSolver, PickPlaceSolver
 from tsrl.envs.tasks import builtin_task_path
 from tsrl.exceptions import InvalidConfig, ModelLoadError, NotRelabelable
 
@@ -144,18 +144,9 @@ def test_collision_penalty_stays_exact_under_relabelling():
     )
 
 
-@pytest.mark.parametrize(
+@pytest.mark.parametrize(  # pick-and-place: >= 95 of 100, tests/envs/test_pick_place_scripted.py
     ("env_id", "solver"),
-    [
-        ("tsrl/UR5ePoseReach-v0", PoseReachSolver),
-        ("tsrl/PandaPoseReach-v0", PoseReachSolver),
-        ("tsrl/UR5eObstacleReach-v0", ObstacleReachSolver),
-        ("tsrl/PandaObstacleReach-v0", ObstacleReachSolver),
-        ("tsrl/UR5eObstacleReach-v1", ObstacleReachSolver),
-        ("tsrl/PandaObstacleReach-v1", ObstacleReachSolver),
-        ("tsrl/UR5ePush-v0", PushSolver),
-        ("tsrl/PandaPush-v0", PushSolver),
-    ],
+    [(f"tsrl/{name}", solver) for name, solver in SOLVERS.items() if solver is not PickPlaceSolver],
 )
 def test_scripted_solvers_reach_the_sampled_goals(env_id, solver, episodes=100, at_least=99):
     env = gym.make(env_id)

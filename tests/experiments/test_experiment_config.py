@@ -91,10 +91,13 @@ def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
         ("[demos]\nepisodes = 0", ["[demos] episodes must be an integer >= 1; got 0"]),
         ("[demos]\nseed = 1", ["missing key 'episodes' in [demos]"]),
         ('[demos]\nepisodes = 5\n[agent.demos]\npath = "d.npz"', ["leave [agent.demos] path unset"]),
-        ('action = ["joint"]\n[demos]\nepisodes = 5', ["action 'joint'", "taskspace, taskspace_orient"]),
+        (
+            'action = ["joint"]\n[demos]\nepisodes = 5',
+            ["[demos]", "got 'joint'", "taskspace or taskspace_orient"],
+        ),
         (
             'env = ["tsrl/UR5ePoseReach-v0"]\n[demos]\nepisodes = 5',
-            ["no scripted demonstrator", "tsrl/UR5eReach-v0"],
+            ["[demos]", "scripted-pose-reach solver", "its task's own action", "got 'taskspace'"],
         ),
     ],
 )

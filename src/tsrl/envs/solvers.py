@@ -1,25 +1,175 @@
 """Scripted solvers of the built-in tasks: they show every sampled goal is feasible, and demonstrate.
 
-Each solver acts on the public observation dict (and, where a task's observation may not carry
-what it needs, on the environment's own state, as a scripted controller may), through the task's
-action map: it asks for the target values it wants and scales them into [-1, 1].
+One protocol (`Controller`: `reset(obs)` at the start of an episode, `act(obs)` each step) and one
+registry (`SOLVERS`: each built-in task name -> its solver's class, built on the TaskEnv it acts in).
+`tsrl demos record` (tsrl.agents.demonstrators), `benchmarks/solvers.py` and the tests use both.
+
+Each solver acts on the public observation dict, or on the task maps evaluated on the environment's
+own state where the task's observation may not carry what it needs (as a scripted controller may),
+through the task's action map: it asks for the target values it wants and scales them into [-1, 1].
 """
 
 from __future__ import annotations
 
+import abc
 import math
+from typing import ClassVar, Protocol
 
 import numpy as np
 
+from ..exceptions import InvalidConfig
+from ..taskmaps import parse_spec
 from ..taskmaps.relabel import quaternion_to_rotation
+from .actions import action_mode
 from .base import TaskEnv
+from .tasks import load_task
 
 
-class PoseReachSolver:
+class Controller(Protocol):
+    """Chooses an episode's actions from its observations (a scripted solver or a trained policy)."""
+
+    name: str
+    """Recorded with the demonstrations it makes, e.g. "scripted-pick-place"."""
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        """Called with the first observation of an episode (after the env's reset)."""
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The action (k,) in [-1, 1] for the observation."""
+
+
+class Solver(abc.ABC):
+    """A scripted solver of a built-in task: a Controller built on the TaskEnv it acts in."""
+
+    name: str
+    actions: ClassVar[tuple[str, ...]] = ()
+    """The action modes it acts in (empty: only its task's own)."""
+
+    def __init__(self, env: TaskEnv):
+        self.env = env
+
+    @abc.abstractmethod
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        """Called with the first observation of an episode (after the env's reset)."""
+
+    @abc.abstractmethod
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The action (k,) in [-1, 1] for the observation."""
+
+
+class _TcpController(Solver):
+    """Base of the reach and pick-place solvers: it moves the TCP by the task's first action part (a
+    relative position step) towards a point `control` chooses from the positions of `spec`, evaluated
+    on the environment's state, and holds every other part (taskspace_orient's scalar products) at its
+    value at the episode's start; a suction dimension comes last."""
+
+    spec: ClassVar[str]
+    actions = ("taskspace", "taskspace_orient")
+
+    def __init__(self, env: TaskEnv):
+        if env.action_mode not in self.actions:
+            raise InvalidConfig(
+                f"the {self.name} solver acts in action modes {', '.join(self.actions)}; got {env.action_mode!r}"
+            )
+        super().__init__(env)
+        parts = env.task.action_spec.parts
+        assert parts[0].step is not None  # these modes' TCP position part is relative
+        self.max_step = float(parts[0].step)
+        self.positions = parse_spec(self.spec, env.model)
+        # The parts after the TCP position are held at their start values: (y - center) / half_range.
+        self.held = parts[1:]
+        self.held_maps = parse_spec(", ".join(p.map for p in self.held), env.model) if self.held else None
+        self.hold = np.zeros(0)
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        if self.held_maps is None:
+            return
+        y = self.held_maps(self.env.model, self.env.data).y
+        slices = self.held_maps.slices
+        held = [(y[slices[p.map]] - np.asarray(p.center)) / np.asarray(p.half_range) for p in self.held]
+        self.hold = np.concatenate([np.zeros(0), *held])
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        y = self.positions(self.env.model, self.env.data).y
+        action = self.control({name: y[s] for name, s in self.positions.slices.items()})
+        action = np.concatenate([action[:3], self.hold, action[3:]])  # position, held parts, suction
+        return action.astype(np.float32)
+
+    def control(self, y: dict[str, np.ndarray]) -> np.ndarray:
+        """The position action (3,) and, with suction, the suction command (1,), from named positions."""
+        raise NotImplementedError
+
+
+class ReachSolver(_TcpController):
+    """Reach: a straight line to the goal at up to the full TCP step; the env's IK turns it into joints."""
+
+    name = "scripted-reach"
+    spec = "position(tcp), position(target)"
+
+    def control(self, y: dict[str, np.ndarray]) -> np.ndarray:
+        return np.clip((y["position(target)"] - y["position(tcp)"]) / self.max_step, -1.0, 1.0)
+
+
+class PickPlaceSolver(_TcpController):
+    """Pick-and-place: above the box, descend, suction on, lift, carry, release (goals on the table)
+    or hold (in the air). Succeeds on >= 95 of 100 seeded episodes (tests/envs)."""
+
+    name = "scripted-pick-place"
+    spec = "position(tcp), position(box), position(target)"
+    HOVER = 0.10  # m above the box top before descending
+    GRIP_DEPTH = 0.004  # m the cup target goes below the box top, to press the cup onto it
+    CARRY_SPEED = 0.6  # fraction of the largest TCP step while the box hangs on the cup
+
+    def __init__(self, env: TaskEnv):
+        super().__init__(env)
+        if not env.task.action_spec.suction:
+            raise InvalidConfig(
+                f"the {self.name} solver needs a suction dimension in {env.task.name}'s action"
+            )
+        self.box_half_size = float(env.model.geom("box").size[0])
+        self.phase = "approach"
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        super().reset(obs)
+        self.phase = "approach"
+
+    def control(self, y: dict[str, np.ndarray]) -> np.ndarray:
+        half = self.box_half_size
+        tcp, box, goal = y["position(tcp)"], y["position(box)"], y["position(target)"]
+        box_top = box + [0.0, 0.0, half]
+        suction = -1.0
+        if self.phase == "approach":
+            target = box_top + [0.0, 0.0, self.HOVER]
+            if np.linalg.norm(tcp - target) < 0.01:
+                self.phase = "descend"
+        if self.phase == "descend":
+            target = box_top - [0.0, 0.0, self.GRIP_DEPTH]
+            if tcp[2] < box_top[2] + 0.003:
+                self.phase = "lift"
+        if self.phase == "lift":
+            suction = 1.0
+            target = np.array([*box_top[:2], max(goal[2], half) + half + 0.08])
+            if tcp[2] > target[2] - 0.02:
+                self.phase = "carry"
+        if self.phase == "carry":
+            suction = 1.0
+            target = goal + [0.0, 0.0, half]
+            if goal[2] < 1.5 * half and np.linalg.norm(box - goal) < 0.01:
+                self.phase = "release"
+        if self.phase == "release":
+            target = goal + [0.0, 0.0, half + 0.03]
+        speed = self.CARRY_SPEED if self.phase in ("lift", "carry") else 1.0
+        return np.append(np.clip((target - tcp) / self.max_step, -speed, speed), suction)
+
+
+class PoseReachSolver(Solver):
     """UR5ePoseReach-v0: the TCP straight to the goal position while turning the cup about the axis of
     the rotation from its orientation to the goal's, at most `max_turn` rad per step."""
 
+    name = "scripted-pose-reach"
+
     def __init__(self, env: TaskEnv, max_turn: float = 0.2):
+        super().__init__(env)
         parts = env.task.action_spec.parts
         self.steps = [p.step for p in parts]  # position, vectorZ, vectorX
         self.max_turn = max_turn
@@ -38,16 +188,19 @@ class PoseReachSolver:
         return np.clip(np.concatenate([a_pos, a_z, a_x]), -1.0, 1.0)
 
 
-class ObstacleReachSolver:
+class ObstacleReachSolver(Solver):
     """Obstacle reach: over the obstacle. The TCP rises to `clearance` m above the obstacle's top (or
     stays higher), crosses above the goal at that height, then descends onto the goal; the wrist is
     above the cup, so nothing passes the obstacle below its top."""
 
+    name = "scripted-obstacle-reach"
+
     def __init__(self, env: TaskEnv, clearance: float = 0.08):
-        self.env = env
+        super().__init__(env)
         self.clearance = clearance
         self.step = env.task.action_spec.parts[0].step
         o = env.task.obstacle
+        assert o is not None  # the obstacle tasks have one
         self._mocap = int(env.model.body_mocapid[env.model.body(o.body).id])
         self._geom = env.model.geom(o.geom).id
         self.vias: list[np.ndarray] = []
@@ -85,11 +238,13 @@ def _turn(q: np.ndarray, q_goal: np.ndarray, max_angle: float) -> np.ndarray:
     return quaternion_to_rotation(np.array([math.cos(half), *(math.sin(half) * v / norm)]))
 
 
-class PushSolver:
+class PushSolver(Solver):
     """Push: the cup travels high to a point behind the box (on the far side from the goal), descends to
     the table and pushes the box along the box-goal line, slowing as it nears the goal; it backs off and
     approaches again when the box slips off the cup's line, and backs off and waits once the box is there.
     Reads the TCP's position from the environment (the observation need not carry it)."""
+
+    name = "scripted-push"
 
     def __init__(
         self,
@@ -99,7 +254,7 @@ class PushSolver:
         behind: float = 0.055,
         speed: float = 0.025,
     ):
-        self.env = env
+        super().__init__(env)
         self.step = env.task.action_spec.parts[0].step
         assert self.step is not None  # the push tasks' position part moves by steps
         self._tcp = env.model.site(env.robot.tcp).id
@@ -146,3 +301,45 @@ class PushSolver:
     def _towards(self, tcp: np.ndarray, target: np.ndarray) -> np.ndarray:
         assert self.step is not None
         return np.clip((target - tcp) / self.step, -1.0, 1.0)
+
+
+#: The scripted solver of each built-in task that has one (names of tsrl.envs.tasks.BUILTIN_TASKS; the
+#: environment id is "tsrl/<name>").
+SOLVERS: dict[str, type[Solver]] = {
+    "UR5eReach-v0": ReachSolver,
+    "UR5eReach-v1": ReachSolver,
+    "UR5ePickPlace-v0": PickPlaceSolver,
+    "UR5ePickPlace-v1": PickPlaceSolver,
+    "UR5ePoseReach-v0": PoseReachSolver,
+    "UR5eObstacleReach-v0": ObstacleReachSolver,
+    "UR5eObstacleReach-v1": ObstacleReachSolver,
+    "UR5ePush-v0": PushSolver,
+    "PandaReach-v0": ReachSolver,
+    "PandaReach-v1": ReachSolver,
+    "PandaPickPlace-v0": PickPlaceSolver,
+    "PandaPickPlace-v1": PickPlaceSolver,
+    "PandaPoseReach-v0": PoseReachSolver,
+    "PandaObstacleReach-v0": ObstacleReachSolver,
+    "PandaObstacleReach-v1": ObstacleReachSolver,
+    "PandaPush-v0": PushSolver,
+}
+
+
+def solver_for(env_id: str, action: str | None = None) -> type[Solver]:
+    """The solver of the built-in task `env_id` ("tsrl/<name>") acting in action mode `action` (None or
+    "task": the task's own action); InvalidConfig naming what is accepted if it has none or acts
+    otherwise. Reads the task's file, builds no environment."""
+    name = env_id.removeprefix("tsrl/")
+    if name == env_id or name not in SOLVERS:
+        raise InvalidConfig(
+            f"no scripted solver for {env_id!r}; solved: {', '.join(f'tsrl/{n}' for n in SOLVERS)}"
+        )
+    solver = SOLVERS[name]
+    own = action_mode(load_task(name).action_spec)
+    accepted = solver.actions or (own,)
+    if (own if action in (None, "task") else action) not in accepted:
+        which = "" if solver.actions else " (its task's own action)"
+        raise InvalidConfig(
+            f"the {solver.name} solver of {env_id} acts in action {' or '.join(accepted)}{which}; got {action!r}"
+        )
+    return solver

@@ -118,7 +118,7 @@ class DemoRecipe:
     them (`[agent.demos]` sets batch share, BC weight and Q-filter)."""
 
     episodes: int
-    """Successful episodes to record (the env's scripted demonstrator, tsrl.agents.demonstrators.SCRIPTED)."""
+    """Successful episodes to record (the task's scripted solver, tsrl.envs.solvers.SOLVERS)."""
     seed: int = 0
     """Recording seed: the episodes' seeds are drawn from their own stream (demo_seeds)."""
 
@@ -229,19 +229,14 @@ class ExperimentConfig:
             return
         if self.agent.demos.path is not None:
             raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
-        from ..agents.demonstrators import SCRIPTED, SCRIPTED_ACTIONS
+        from ..agents.config import TASK_ACTION
+        from ..envs.solvers import solver_for
 
-        for env in self.env:
-            if env not in SCRIPTED:
-                raise InvalidConfig(
-                    f"[demos]: no scripted demonstrator for env {env!r}; scripted: {', '.join(SCRIPTED)}"
-                )
-        for action in self.action:
-            if action not in SCRIPTED_ACTIONS:
-                raise InvalidConfig(
-                    f"[demos]: the scripted demonstrators do not act in action {action!r}; "
-                    f"accepted: {', '.join(SCRIPTED_ACTIONS)}"
-                )
+        for env, action in itertools.product(self.env, self.action):
+            try:
+                solver_for(env, None if action == TASK_ACTION else action)
+            except InvalidConfig as err:
+                raise InvalidConfig(f"[demos]: {err}") from None
 
     def runs(self, exp_dir: Path | None = None) -> list[TrainConfig]:
         """One TrainConfig per grid point, seed-major (every configuration's seed 0 first), so that a
