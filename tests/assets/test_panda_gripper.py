@@ -253,6 +253,21 @@ def test_closed_fingers_squeeze_the_box_with_the_rated_grasp_force(grasped):
     np.testing.assert_allclose(tcp_in_hand_frame(model, data), 0.0, atol=1e-3)  # centred by the coupling
 
 
+def test_oppose_of_the_grasped_box_is_near_zero(grasped):
+    """The coupled fingers centre the box they squeeze: RAI's opposition is below 0.1 mm."""
+    model, data = grasped
+    y = parse_spec("oppose(finger_left, finger_right, box)", model)(model, data).y
+    assert np.linalg.norm(y) < 1e-4
+    shifted = copy.copy(data)  # the same grasp with the box 2 mm towards finger_left: y = -4 mm there
+    R = data.site_xmat[name_to_id(model, "site", "tcp")].reshape(3, 3)
+    adr = model.jnt_qposadr[name_to_id(model, "joint", "box")]
+    shifted.qpos[adr : adr + 3] += 0.002 * R[:, 1]
+    mujoco.mj_kinematics(model, shifted)
+    mujoco.mj_comPos(model, shifted)
+    y_shifted = parse_spec("oppose(finger_left, finger_right, box)", model)(model, shifted).y
+    np.testing.assert_allclose(y_shifted - y, -0.004 * R[:, 1], atol=1e-5)
+
+
 def test_a_width_target_inside_the_box_squeezes_below_the_rating(grasped):
     """3 mm inside the box the servo's force is below its limit, and the fingers press with that force."""
     model, data = grasped

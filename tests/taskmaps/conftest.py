@@ -19,12 +19,22 @@ EXAMPLE_ARGS = {
     "actuator": ("suction",),
 }
 
+#: Maps whose example needs arguments of its own: oppose, three geoms with polytope cores (the UR5e's
+#: two capsules and the table); gripperWidth, an actuator on a joint or fixed tendon (the elbow servo:
+#: its length is the elbow angle). tests/taskmaps/test_grasp.py tests both on the gripper Panda too.
+EXAMPLE_SPECS = {
+    "oppose": "oppose(upper_arm_tube, forearm_tube, table)",
+    "gripperWidth": "gripperWidth(elbow)",
+}
+
 #: Maps whose value is only smooth near a chosen pose (the suction cup pressed into the table).
 CONTACT_MAPS = ("distance", "accumulatedCollisions")
 
 
 def example_spec(name: str, inner: str = "positionRel(tcp, upper_arm_link)") -> str:
     """A spec for the registered map `name`, e.g. "positionDiff(tcp, upper_arm_link)"."""
+    if name in EXAMPLE_SPECS:
+        return EXAMPLE_SPECS[name]
     kinds = TASK_MAPS[name].args
     if not kinds:
         return name

@@ -156,6 +156,8 @@ def test_known_maps_has_every_rai_symbol_and_suction():
         *(f"scalarProduct{a}{b}" for a in "XYZ" for b in "XYZ"),
         "distance",
         "accumulatedCollisions",
+        "oppose",
+        "gripperWidth",  # not a RAI symbol: a gripper's opening width (tsrl's own)
         "jointState",
         "jointLimits",
         "velocity",

@@ -3,6 +3,8 @@
 from .base import TaskMap, TaskMapValue
 from .collision import AccumulatedCollisions, Distance
 from .frames import Frame, FrameCache, resolve_frame
+from .grasp import Oppose
+from .gripper import GripperWidth
 from .joint import JointLimits, JointState
 from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
@@ -17,8 +19,10 @@ __all__ = (
     "Distance",
     "Frame",
     "FrameCache",
+    "GripperWidth",
     "JointLimits",
     "JointState",
+    "Oppose",
     "Position",
     "PositionDiff",
     "PositionRel",

@@ -24,6 +24,8 @@ import numpy as np
 from ..exceptions import NotRelabelable
 from .base import TaskMap
 from .collision import AccumulatedCollisions, Distance
+from .grasp import Oppose
+from .gripper import GripperWidth
 from .joint import JointLimits, JointState
 from .orientation import Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
@@ -219,6 +221,8 @@ _RULES: dict[type, Callable[..., np.ndarray]] = {
     Stack: _stack,
     Distance: _never,
     AccumulatedCollisions: _never,
+    Oppose: _never,
+    GripperWidth: _unchanged,
     Suction: _never,
     JointState: _unchanged,
     JointLimits: _unchanged,

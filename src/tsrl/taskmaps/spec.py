@@ -16,6 +16,8 @@ from ..exceptions import SpecError, UnknownTaskMap
 from ..kinematics import Joints, controlled_joints
 from .base import TaskMap
 from .collision import AccumulatedCollisions, Distance
+from .grasp import Oppose
+from .gripper import GripperWidth
 from .joint import JointLimits, JointState
 from .orientation import AXES, Quaternion, QuaternionDiff, ScalarProduct, Vector
 from .position import Position, PositionDiff, PositionRel
@@ -58,6 +60,8 @@ TASK_MAPS: dict[str, MapEntry] = {
     "distance": MapEntry(("geom", "geom"), Distance),
     "accumulatedCollisions": MapEntry((), AccumulatedCollisions),
     "suction": MapEntry(("actuator",), Suction),
+    "oppose": MapEntry(("geom", "geom", "geom"), Oppose),
+    "gripperWidth": MapEntry(("actuator",), GripperWidth),
     "jointState": MapEntry((), JointState, joints=True),
     "jointLimits": MapEntry((), JointLimits, joints=True),
     "velocity": MapEntry(("map",), _velocity),
@@ -77,8 +81,8 @@ def parse_spec(
     A spec is a comma-separated list of maps `name(arg, ...)` (no parentheses for maps without
     arguments) and names of `presets` (name -> spec, e.g. tsrl.envs.OBS_PRESETS), which expand in
     place. Arguments are frame names
-    (sites, else bodies; `world` is the world body), geom names (`distance`), an adhesion actuator
-    (`suction`) or a map (`velocity`).
+    (sites, else bodies; `world` is the world body), geom names (`distance`, `oppose`), an actuator
+    (`suction`: an adhesion actuator; `gripperWidth`: a gripper's servo) or a map (`velocity`).
     Always returns a Stack, even for one map, so `slices` names every part.
 
     `joints` are the controlled joints that `jointState` and `jointLimits` read: hinge or slide joint
