@@ -95,3 +95,20 @@ def test_a_policy_that_sees_fewer_inputs_exports_only_those(tmp_path):
     contract = read_contract(out)
     assert [i["name"] for i in contract["policy"]["inputs"]] == ["observation", "desired_goal"]
     OnnxPolicy(out / POLICY, ("observation", "desired_goal"))  # the file's inputs are those
+
+
+@pytest.mark.parametrize(
+    ("env_id", "why"),
+    [
+        ("tsrl/UR5eObstacleReach-v1", "obstacle whose size is drawn"),
+        ("tsrl/PandaPegInsert-v0", "places fixtures"),
+        ("tsrl/PandaPickPlaceGripper-v0", "commands a gripper"),
+    ],
+)
+def test_tasks_the_runtime_cannot_measure_are_refused_in_one_line(env_id, why, tmp_path):
+    from tsrl.exceptions import InvalidConfig
+
+    with pytest.raises(InvalidConfig, match=why) as err:
+        build_export(tmp_path / "export", env_id=env_id, obs="fs1")
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "export").exists()

@@ -139,6 +139,16 @@ def export_policy(
             f"task {task.name!r} has an obstacle whose size is drawn per episode; no robot backend measures "
             "it, so obstacle tasks cannot be exported for deployment"
         )
+    if task.fixtures:  # placed at goal + offset by the Randomizer; the controller would need that rule
+        raise InvalidConfig(
+            f"task {task.name!r} places fixtures ({', '.join(f.body for f in task.fixtures)}) with the goal each "
+            "episode; no robot backend measures them, so it cannot be exported for deployment"
+        )
+    if task.action_spec.gripper:
+        raise InvalidConfig(
+            f"task {task.name!r} commands a gripper; the deployment runtime commands a suction cup only, so "
+            "it cannot be exported for deployment"
+        )
     if task.source is None:
         raise InvalidConfig(f"task {task.name!r} was built in code; export needs a task file")
     keys = tuple(cfg.agent.policy_inputs)
@@ -359,7 +369,14 @@ def _contract(
         "format": FORMAT,
         "contract_version": CONTRACT_VERSION,
         "tsrl_version": __version__,
-        "frames": "every position and orientation is in the scene's world frame unless a row says otherwise",
+        "frames": (
+            "every position and orientation is in the scene's world frame unless a row says otherwise"
+            + (
+                "; the task expresses the scene in the robot's base frame: world = base"
+                if task.frame == "base"
+                else ""
+            )
+        ),
         "robot": {
             "name": robot.name,
             "joints": list(robot.joints),
@@ -385,6 +402,7 @@ def _contract(
         },
         "task": {
             "name": task.name,
+            "frame": task.frame,
             "file": TASK,
             "scene": scene,
             "robot_file": ROBOT,
