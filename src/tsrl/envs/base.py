@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 from ..exceptions import InvalidAction, InvalidConfig, TsrlError
 from ..ik import DlsSolver, IKOptions
 from ..robots import Robot, load_robot
-from ..taskmaps import Stack
+from ..taskmaps import Stack, resolve_frame
 from .actions import ActionMap, action_mode
 from .goals import Goal
 from .observations import OBS_PRESETS, StepPlan
@@ -74,6 +74,8 @@ class TaskEnv(gym.Env, EzPickle):
         ik_iterations: 1 = the paper's single linearised IK step per control step; more = a local
             iterative solve.
         render_mode: None, "rgb_array" or "human"; width, height: rgb_array image size.
+        camera: the name of a camera in the model for rgb_array images; None: a camera aimed at the
+            task's workspace (the goal box and the TCP at home, seen from beside the robot's base).
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}  # noqa: RUF012 (Gymnasium's)
@@ -88,8 +90,11 @@ class TaskEnv(gym.Env, EzPickle):
         ik_iterations: int = 1,
         width: int = 480,
         height: int = 480,
+        camera: str | None = None,
     ):
-        EzPickle.__init__(self, task, obs, action, render_mode, success_radius, ik_iterations, width, height)
+        EzPickle.__init__(
+            self, task, obs, action, render_mode, success_radius, ik_iterations, width, height, camera
+        )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InvalidConfig(
                 f"unknown render_mode {render_mode!r}; accepted: None, {', '.join(self.metadata['render_modes'])}"
@@ -104,6 +109,7 @@ class TaskEnv(gym.Env, EzPickle):
         self.render_mode = render_mode
         self._render_size = (width, height)
         self._renderer: Any = None
+        self._camera = camera
         self._viewer: Any = None
         with _named_source(self.task):
             self._build()
@@ -274,7 +280,7 @@ class TaskEnv(gym.Env, EzPickle):
             from ..rendering import SceneRenderer
 
             if self._renderer is None:
-                self._renderer = SceneRenderer(self.model, *self._render_size)
+                self._renderer = SceneRenderer(self.model, *self._render_size, camera=self._camera_view())
             return self._renderer.render(self.data)
         if self.render_mode == "human":
             if self._viewer is None:
@@ -295,6 +301,22 @@ class TaskEnv(gym.Env, EzPickle):
             self._viewer = None
 
     # -- internals ---------------------------------------------------------------------------------
+    def _camera_view(self) -> Any:
+        """The named camera, or a free camera framing the goal box and the TCP at home from the base."""
+        from ..rendering import named_camera, workspace_camera
+
+        if self._camera is not None:
+            return named_camera(self.model, self._camera)
+        p = self.task.goal.position
+        center = np.array(p.center) + [0.0, 0.0, p.max_lift / 2]
+        half = np.array(p.half_extent) + [0.0, 0.0, p.max_lift / 2]
+        corners = center + half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        data = mujoco.MjData(self.model)
+        self.bound_robot.reset_to_home(self.model, data)
+        mujoco.mj_kinematics(self.model, data)
+        tcp, base = (_frame_position(self.model, data, name) for name in ("tcp", "base"))
+        return workspace_camera(self.model, np.vstack([corners, tcp]), base)
+
     def _observation(self) -> dict[str, np.ndarray]:
         """Fresh copies of the last evaluation's observation (with this step's noise) and goals."""
         observation, achieved, desired = self.plan.views
@@ -344,3 +366,9 @@ def _with_prefix(err: TsrlError, prefix: str) -> TsrlError:
     new = Exception.__new__(type(err))
     new.args = (prefix + str(err),)
     return new
+
+
+def _frame_position(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
+    """World position (3,) of the site, else body, called `name` (kinematics done)."""
+    frame = resolve_frame(model, name)
+    return data.site_xpos[frame.id] if frame.kind == "site" else data.xpos[frame.id]
