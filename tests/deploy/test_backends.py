@@ -142,3 +142,13 @@ def test_a_backend_with_other_joints_is_refused_in_one_line(ur5e_reach, panda_pi
     with pytest.raises(InvalidConfig, match=r"\(6\); the contract's robot has .* \(7\)"):
         check_backend(UrRtdeBackend("192.0.2.1"), panda)
     check_backend(MujocoBackend(panda_pick_place), panda)
+
+
+def test_another_model_file_of_the_arm_can_be_the_simulated_robot(ur5e_reach, tmp_path):
+    import shutil
+
+    copy = tmp_path / "model"
+    shutil.copytree(ur5e_reach / "model", copy)  # the same arm, from another place
+    backend = MujocoBackend(ur5e_reach, scene=copy / "scenes" / "reach.xml")
+    check_backend(backend, read_contract(ur5e_reach))
+    conformance(backend)

@@ -70,6 +70,8 @@ class Deploy:
     servo: Literal["interpolate", "hold"] = "interpolate"
     """interpolate: servo commands from the limiter; hold: the policy target held for the period as in
     training (mujoco only; it does not honour the speed and acceleration limits between ticks)."""
+    scene: Path | None = None
+    """mujoco: another model file of the same arm to simulate (default: the export's scene)."""
     realtime: bool = False
     """mujoco: pace the simulation to the wall clock (default: as fast as possible)."""
     latency: float = 0.0
@@ -104,13 +106,14 @@ class Deploy:
             return self._replay()
         import numpy as np
 
-        from .backends import ShadowBackend, make_backend
+        from .backends import ShadowBackend, check_backend, make_backend
         from .controller import Controller, ControllerOptions
         from .loop import DeployLog, log_header, run_episodes
 
         assert self.export_dir is not None
         goal = _parse_goal(self.goal)
         sim = {
+            "scene": self.scene,
             "realtime": self.realtime,
             "latency": self.latency,
             "joint_noise": self.joint_noise,
@@ -133,6 +136,7 @@ class Deploy:
         controller = Controller.from_export(self.export_dir, options)
         if goal is not None:
             controller.set_goal(goal)  # the goal's size checked before the arm moves
+        check_backend(backend, controller.contract)  # before the log: a mismatch leaves nothing behind
         if self.dry_run:
             backend = ShadowBackend(backend)
         seeds = list(self.seeds) if self.seeds is not None else list(range(self.episodes))

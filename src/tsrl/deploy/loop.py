@@ -136,10 +136,9 @@ def run_episodes(
     goals: Sequence[ArrayLike | None] | None = None,
     log: DeployLog | None = None,
     servo: ServoMode = "interpolate",
-    dry_run: bool = False,
 ) -> list[EpisodeResult]:
     """Runs one episode per seed (goals[i], or drawn as the task draws it with seeds[i]); see the
-    module docstring. `dry_run`: the backend is a ShadowBackend (nothing is sent), logged alike."""
+    module docstring. For a dry run, pass a ShadowBackend (nothing is sent; logged alike)."""
     check_backend(backend, controller.contract)
     if servo == "hold" and not isinstance(backend, MujocoBackend):
         raise InvalidConfig("--servo hold (the training env's command timing) is for the MuJoCo backend only")
