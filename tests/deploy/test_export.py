@@ -57,7 +57,7 @@ def test_the_contract_describes_the_rows_files_limits_and_normaliser(ur5e_reach)
         "high": [-0.15, 0.3, 0.7],
     }
     assert contract["action"]["hold"] == [{"map": "vectorZ(tcp)", "value": [0.0, 0.0, -1.0]}]
-    assert contract["workspace"]["low"] == [-0.9, -0.55, 0.02]
+    assert contract["workspace"]["low"] == [-0.9, -0.55, 0.02] and contract["workspace"]["part"] == 0
     assert contract["task"]["control_period_s"] == 0.04
     # The IK options are the env's own.
     assert contract["ik"]["options"]["max_iters"] == 1 and contract["ik"]["options"]["restarts"] == 0

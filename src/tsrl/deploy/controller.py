@@ -143,6 +143,14 @@ class Controller:
             options_ = IKOptions(**contract["ik"]["options"])
             self._ik = DlsSolver(model, env.action_map.ik_map, self.joint_names, options_)
         limits = np.asarray(robot["joint_limits"], dtype=np.float64)
+        unlimited = [
+            j for j, (lo, hi) in zip(self.joint_names, limits) if not (np.isfinite(lo) and np.isfinite(hi))
+        ]
+        if unlimited:
+            raise InvalidConfig(
+                f"contract.json: joint {unlimited[0]!r} has no position limits; the safety layer needs finite "
+                "limits on every joint (give them in the robot's model)"
+            )
         scale = options.speed_scale
         self.limiter = JointLimiter(
             limits[:, 0] + options.joint_margin,
@@ -161,12 +169,11 @@ class Controller:
         )
         # The TCP position part: its action columns, IK-target rows and step, to report workspace clips.
         self._tcp_part: tuple[slice, slice, float] | None = None
-        if self.workspace is not None and env.action_map.ik_map is not None:
-            rows = list(env.action_map.ik_map.slices.values())
-            for i, part in enumerate(contract["action"]["parts"]):
-                low = part.get("low")
-                if part.get("step") is not None and low is not None and np.allclose(low, ws["low"]):
-                    self._tcp_part = (slice(*part["columns"]), rows[i], float(part["step"]))
+        if ws and env.action_map.ik_map is not None:
+            part = contract["action"]["parts"][ws["part"]]
+            if part.get("step") is not None:  # a relative part: what the policy asked is y + step a
+                rows = list(env.action_map.ik_map.slices.values())[ws["part"]]
+                self._tcp_part = (slice(*part["columns"]), rows, float(part["step"]))
         self._alpha = math.exp(-self.control_period / options.action_filter) if options.action_filter else 0.0
         self._filtered: np.ndarray | None = None
         self._goal = np.zeros(env.goal.dim)

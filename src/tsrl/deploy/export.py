@@ -352,7 +352,7 @@ def _contract(
     ik_map = action.ik_map
     parts, col = [], 0
     workspace = None
-    for part, ik_part in zip(action.spec.parts, ik_map.parts if ik_map else ()):
+    for index, (part, ik_part) in enumerate(zip(action.spec.parts, ik_map.parts if ik_map else ())):
         entry: dict[str, Any] = {"map": part.map, "columns": [col, col + ik_part.dim]}
         entry |= {"step": part.step} if part.step is not None else {}
         entry |= (
@@ -362,7 +362,13 @@ def _contract(
         parts.append(entry)
         col += ik_part.dim
         if isinstance(ik_part, Position) and ik_part.f.name == robot.tcp and part.low and part.high:
-            workspace = {"low": list(part.low), "high": list(part.high), "frame": "world", "unit": "m"}
+            workspace = {
+                "part": index,  # the action part that sets the TCP position target
+                "low": list(part.low),
+                "high": list(part.high),
+                "frame": "world",
+                "unit": "m",
+            }
     ik_solver = getattr(env, "_ik", None)  # TaskEnv's solver: its options are what the env's step used
     goal_rows = describe_rows(Stack([*env.goal.achieved_maps, *env.goal.penalty_maps]), joint_units)
     return {
