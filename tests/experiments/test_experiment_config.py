@@ -13,9 +13,10 @@ import pytest
 
 from tsrl.agents.config import POLICY_INPUTS, AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
-from tsrl.experiments.aggregate import compare, markdown_summary, sort_key, summarize, variants
+from tsrl.experiments.aggregate import compare, markdown_summary, sort_key, summarize
 from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
 from tsrl.experiments.curves import Curve, curves
+from tsrl.experiments.results import variants
 
 REPO = Path(__file__).resolve().parents[2]
 GOOD = """

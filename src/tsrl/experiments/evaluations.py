@@ -135,8 +135,8 @@ def profile(
     results folder: each of its runs, labelled by configuration) on the sweep of `perturbation` over
     the task `env_id` (default: each run's own). Every run's layout and every value are checked before
     any policy loads."""
-    from .aggregate import find_runs, variants
     from .config import config_labels
+    from .results import find_runs, variants
 
     run_dirs = [path] if (path / CONFIG_FILE).is_file() else find_runs(path)
     cfgs = [load_config(d) for d in run_dirs]
