@@ -12,7 +12,7 @@ from functools import partial
 
 import mujoco
 
-from ..exceptions import SpecError, UnknownTaskMap
+from ..exceptions import SpecError, UnknownName, UnknownTaskMap
 from ..kinematics import Joints, controlled_joints
 from .base import TaskMap
 from .collision import AccumulatedCollisions, Distance
@@ -214,3 +214,8 @@ class _Parser:
             return [entry.build(model, *values)]
         except SpecError as err:
             raise self.error(str(err), node.pos) from None
+        except UnknownName as err:  # name the spec the unknown frame or geom stands in
+            message = str(err)
+            head, sep, tail = message.partition("; ")
+            err.args = (f"{head} in spec {self.spec!r}{sep}{tail}",)
+            raise err from None
