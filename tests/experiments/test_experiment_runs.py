@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runner import run_tsrl
+from cli_runner import REPO, run_tsrl
 
 from tsrl.agents.demo_files import load_demos, sha256
 from tsrl.agents.run_folder import check_not_locked, latest_checkpoint, read_state
@@ -270,10 +270,7 @@ def test_a_second_ctrl_c_ends_the_running_runs_at_once(tmp_path):
     [
         (
             ["experiment", "no-such-experiment"],
-            "known: action-ablation, action-ablation-v2, obstacle-features, obstacle-features-v1, paper-observations, "
-            + "paper-observations-v2, paper-observations-v2-hard, pick-place, pick-place-box-tcp, pick-place-features, pick-place-suction, "
-            + "pick-place-suction-ablation, pose-features, "
-            + "quick-reach",
+            "known: " + ", ".join(sorted(p.stem for p in (REPO / "experiments").glob("*.toml"))),
         ),
         (["experiment", "quick-reach", "--workers", "0"], "--workers must be >= 1"),
         (["experiment", "BAD"], "unknown key 'seed'; accepted: description"),
