@@ -19,6 +19,7 @@ from typing import Annotated, Any, Literal
 from tyro.conf import OmitArgPrefixes, arg
 
 from ..envs.actions import ACTION_MODES
+from ..envs.keys import OBS_KEYS
 from ..envs.observations import OBS_PRESETS
 from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_number
 
@@ -30,7 +31,7 @@ ALGOS: tuple[str, ...] = typing.get_args(Algo)
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
 HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 #: Keys of a goal environment's observation dict that the networks may see (AgentConfig.policy_inputs).
-POLICY_INPUTS: tuple[str, ...] = ("observation", "achieved_goal", "desired_goal")
+POLICY_INPUTS: tuple[str, ...] = OBS_KEYS  # any key of the dict
 #: `obs` / `action` value for environments that are not tsrl's (e.g. FetchReach-v4 in benchmarks).
 NATIVE = "native"
 #: `action` value that keeps the task's own action (its file's [action]) instead of a built-in mode.
