@@ -305,6 +305,140 @@ class PushSolver(Solver):
 
 #: The scripted solver of each built-in task that has one (names of tsrl.envs.tasks.BUILTIN_TASKS; the
 #: environment id is "tsrl/<name>").
+
+
+class GripperPickPlaceSolver(Solver):
+    """Gripper pick-and-place: open above the object (goal part `part`), descend around it, close,
+    lift (at most `lift` m per period), carry it `above` m over its goal, align to within `align` m,
+    lower it onto the goal (at most `descend` m per period); with `release`, open there and rise.
+
+    Reads the TCP's position from the environment (the observation need not carry it). `on`: the goal
+    part whose object this one is put on (aimed at that object as it lies, plus the goals' offset)."""
+
+    name = "scripted-gripper-pick-place"
+
+    def __init__(
+        self,
+        env: TaskEnv,
+        part: int = 0,
+        release: bool = False,
+        on: int | None = None,
+        grasp_height: float = 0.0,
+        above: float = 0.03,
+        align: float = 0.01,
+        descend: float = 0.02,
+        lift: float = 0.05,
+        close_steps: int = 6,
+    ):
+        super().__init__(env)
+        if not env.task.action_spec.gripper:
+            raise InvalidConfig(
+                f"the {self.name} solver needs a gripper dimension in {env.task.name}'s action"
+            )
+        step = env.task.action_spec.parts[0].step
+        assert step is not None  # the gripper tasks' position part moves by steps
+        self.step = float(step)
+        self._tcp = env.model.site(env.robot.tcp).id
+        self.cols = slice(3 * part, 3 * part + 3)
+        self.below = slice(3 * on, 3 * on + 3) if on is not None else None
+        self.release = release
+        self.grasp = np.array([0.0, 0.0, grasp_height])  # the grasp point above the object's centre
+        self.clearance, self.travel = 0.06, 0.08  # hover above the grasp point; the lowest carry height
+        self.above, self.align, self.descend, self.lift = above, align, descend, lift
+        self.close_steps = close_steps  # the fingers close at 0.1 m/s: 4 mm per period
+        self.phase, self.count, self.descending = "above", 0, False
+
+    @property
+    def done(self) -> bool:
+        """Whether it has released the object and risen (with `release`)."""
+        return self.phase == "done"
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        self.phase, self.count, self.descending = "above", 0, False
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        tcp = self.env.data.site_xpos[self._tcp]
+        obj, goal = obs["achieved_goal"][self.cols], obs["desired_goal"][self.cols]
+        if self.below is not None:  # onto the object below as it lies, not onto its goal
+            goal = obs["achieved_goal"][self.below] + (goal - obs["desired_goal"][self.below])
+        width = 1.0
+        target = tcp.copy()
+        if self.phase == "above":
+            target = obj + self.grasp + [0.0, 0.0, self.clearance]
+            if np.linalg.norm((tcp - target)[:2]) < 0.01 and abs(tcp[2] - target[2]) < 0.02:
+                self.phase = "down"
+        if self.phase == "down":
+            target = obj + self.grasp
+            if np.linalg.norm(tcp - target) < 0.008:
+                self.phase, self.count = "close", 0
+        if self.phase == "close":
+            target, width = obj + self.grasp, -1.0
+            self.count += 1
+            if self.count >= self.close_steps:
+                self.phase = "carry"
+        if self.phase == "carry":
+            width = -1.0
+            above = max(goal[2] + self.above, self.travel)  # the object's height while it travels
+            grip = tcp - obj
+            off = float(np.linalg.norm((goal - obj)[:2]))
+            self.descending = off < (3 * self.align if self.descending else self.align)  # hysteresis
+            if not self.descending:
+                if obj[2] < above - 0.02 and off > 0.03:  # lift first
+                    target = np.array([*tcp[:2], min(above + grip[2], tcp[2] + self.lift)])
+                else:  # over the goal, above it
+                    target = np.array([*goal[:2], above]) + grip
+            else:  # down onto the goal
+                target = goal + grip
+                target[2] = max(target[2], tcp[2] - self.descend)
+                if self.release and np.linalg.norm(goal - obj) < 0.006:
+                    self.phase, self.count = "open", 0
+        if self.phase == "open":  # open fully before moving
+            target = tcp.copy()
+            self.count += 1
+            if self.count >= 5:
+                self.phase = "rise"
+        if self.phase == "rise":  # straight up, slowly while the fingers are beside the object
+            target = np.array([*tcp[:2], tcp[2] + 0.01])
+            if tcp[2] > obj[2] + 0.04:
+                target = np.array([*tcp[:2], obj[2] + self.clearance])
+            if tcp[2] > obj[2] + self.clearance - 0.01:
+                self.phase = "done"
+        if self.phase == "done":
+            target = tcp.copy()
+        return np.append(np.clip((target - tcp) / self.step, -1.0, 1.0), width).astype(np.float32)
+
+
+class StackSolver(Solver):
+    """Stacking: the first box to its goal and released; then the second onto the first as it lies."""
+
+    name = "scripted-stack"
+
+    def __init__(self, env: TaskEnv):
+        super().__init__(env)
+        self.first = GripperPickPlaceSolver(env, 0, release=True)
+        self.second = GripperPickPlaceSolver(env, 1, release=True, on=0)
+
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        self.first.reset(obs)
+        self.second.reset(obs)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return (self.second if self.first.done else self.first).act(obs)
+
+
+class PegInsertSolver(GripperPickPlaceSolver):
+    """Peg insertion: the peg grasped 2 cm above its centre once the fingers have closed on it, lifted
+    slowly, carried 6 cm above the hole, aligned to within 1 mm, lowered in at 1 cm per period."""
+
+    name = "scripted-peg-insert"
+
+    def __init__(self, env: TaskEnv):
+        super().__init__(
+            env, grasp_height=0.02, above=0.06, align=0.001, descend=0.01, lift=0.015, close_steps=10
+        )
+        self.travel = 0.1
+
+
 SOLVERS: dict[str, type[Solver]] = {
     "UR5eReach-v0": ReachSolver,
     "UR5eReach-v1": ReachSolver,
@@ -322,6 +456,9 @@ SOLVERS: dict[str, type[Solver]] = {
     "PandaObstacleReach-v0": ObstacleReachSolver,
     "PandaObstacleReach-v1": ObstacleReachSolver,
     "PandaPush-v0": PushSolver,
+    "PandaPickPlaceGripper-v0": GripperPickPlaceSolver,
+    "PandaStack-v0": StackSolver,
+    "PandaPegInsert-v0": PegInsertSolver,
 }
 
 
