@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from ..agents.run_folder import load_config, read_progress
+from ..agents.config import TrainConfig
+from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..configs import load_table
 from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
@@ -38,7 +39,6 @@ from . import statistics as st
 from .config import EVAL_METRIC, EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
 from .curves import FINAL_EVALS, Curve, curves, row_key
 from .plots import plot_curves, plot_profile
-from .results import find_runs, variants
 from .runner import ERROR_FILE
 from .statistics import THRESHOLDS
 
@@ -64,6 +64,45 @@ CURVES_PNG = "learning_curves.png"
 PROFILE_PNG = "performance_profile.png"
 #: Thresholds of the AUC performance profile.
 PROFILE_TAUS = np.linspace(0.0, 1.0, 51)
+
+
+def find_runs(results_dir: Path) -> list[Path]:
+    """Run folders (holding config.json) directly inside `results_dir`, sorted by name."""
+    results_dir = Path(results_dir)
+    if not results_dir.is_dir():
+        raise InvalidConfig(f"results folder {results_dir} does not exist")
+    runs = sorted(p for p in results_dir.iterdir() if (p / CONFIG_FILE).is_file())
+    if not runs:
+        raise InvalidConfig(
+            f"no run folders in {results_dir} (a run folder holds {CONFIG_FILE}); pass an experiment's "
+            "results folder, e.g. results/quick-reach"
+        )
+    return runs
+
+
+#: Config fields that are grid axes, or that do not change what a run learns: not part of a variant.
+_NOT_VARIANT = {
+    "env_id",
+    "obs",
+    "action",
+    "agent.algo",
+    "seed",
+    "total_timesteps",
+    "checkpoint_freq",
+    "torch_threads",
+}
+
+
+def variants(cfgs: list[TrainConfig]) -> list[str]:
+    """Per config, the settings (beyond env, obs, action, algo, seed) that differ among `cfgs`, as
+    `field=value, ...`; empty when all share them (as the runs of one experiment do)."""
+    flat = [{k: v for k, v in _flatten(c.to_dict()).items() if k not in _NOT_VARIANT} for c in cfgs]
+    for f, cfg in zip(flat, cfgs, strict=True):  # an experiment's [demos] records one file per
+        del f["agent.demos.path"]  # (env, obs, action): on or off is the variant (sha256: demos.json)
+        f["agent.demos"] = cfg.agent.demos.active
+        f["init_from"] = cfg.init_from is not None  # each seed its own source: started from one or not
+    fields = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
+    return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
 
 
 def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
@@ -96,6 +135,29 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
                     "eval_penalised_rate": r.get("eval_penalised_rate", math.nan),
                 }
             )
+    return rows
+
+
+#: Columns of results.csv that are integers; the others past the configuration's are floats.
+_INT_COLUMNS = ("seed", "eval_episodes", "env_steps", "episodes")
+
+
+def read_results(path: Path) -> list[dict[str, Any]]:
+    """Tidy rows from a results.csv that `tsrl report` wrote (a committed study's data without its run
+    folders): RESULT_COLUMNS typed as `collect` makes them; a column an older report lacks is NaN
+    (eval_episodes: 0)."""
+    with open(path, newline="") as f:
+        raw = list(csv.DictReader(f))
+    rows = []
+    for r in raw:
+        row: dict[str, Any] = {k: r.get(k, "") for k in ("env", "obs", "action", "algo", "variant")}
+        for k in RESULT_COLUMNS[5:]:
+            value = r.get(k, "")
+            if k in _INT_COLUMNS:
+                row[k] = int(value) if value else 0
+            else:
+                row[k] = float(value) if value else math.nan
+        rows.append(row)
     return rows
 
 
@@ -177,6 +239,8 @@ def compare(
     out, effects = [], []
     for c in present:
         x, y = metrics[c.a][c.metric], metrics[c.b][c.metric]
+        bounds = {arm: st.iqm_interval(v) for arm, v in ((c.a, x), (c.b, y))}  # every metric is a rate
+        flags = [f"{arm}: {f}" for arm, e in bounds.items() if (f := st.bound_flags(e.low[0], e.high[0]))]
         effect = st.iqm_difference(x, y)
         poi = st.probability_of_improvement(x, y)
         effects.append(effect)
@@ -191,12 +255,15 @@ def compare(
                 "effect": float(effect.point[0]),
                 "effect_ci_low": float(effect.low[0]),
                 "effect_ci_high": float(effect.high[0]),
+                "effect_sd": float(effect.sd[0]),
                 "poi": float(poi.point[0]),
                 "poi_ci_low": float(poi.low[0]),
                 "poi_ci_high": float(poi.high[0]),
                 "p": st.mann_whitney_p(x, y, c.direction),
+                "p_method": st.mann_whitney_method(x, y),
                 "mde": st.minimum_detectable_effect(float(effect.sd[0]), len(comparisons), c.direction),
                 "min_effect": math.nan if c.min_effect is None else c.min_effect,
+                "flags": "; ".join(flags),
             }
         )
     # The family is every pre-registered comparison: one not computed yet counts as p = 1.
@@ -219,11 +286,16 @@ def write_csv(path: Path, rows: list[dict[str, Any]], columns: list[str] | tuple
 def write_report(results_dir: Path | str) -> list[Path]:
     """Writes results.csv, summary.csv, comparisons.csv (when the experiment registers comparisons),
     summary.md, the learning curves and the AUC performance profile into `results_dir`; returns their
-    paths."""
+    paths. A folder with results.csv and no run folders (a committed study) is re-rendered from it."""
     results_dir = Path(results_dir)
-    run_dirs = find_runs(results_dir)
-    try:
-        rows = collect(run_dirs)
+    committed = (
+        results_dir.is_dir()
+        and not any((p / CONFIG_FILE).is_file() for p in results_dir.iterdir())
+        and (results_dir / RESULTS_CSV).is_file()
+    )
+    run_dirs = [] if committed else find_runs(results_dir)
+    try:  # a committed study (results.csv, no run folders) is re-rendered from its data
+        rows = read_results(results_dir / RESULTS_CSV) if committed else collect(run_dirs)
     except TsrlError as err:  # a config.json that does not load
         raise InvalidConfig(str(err)) from None
     if not rows:
@@ -289,9 +361,13 @@ _HOW_TO_READ_COMPARISONS = (
     "**Comparisons** (pre-registered in the experiment file): effect = IQM(a) - IQM(b) of the per-seed "
     "metric, with its 95% interval (each arm's seeds resampled on their own); P(a > b): probability "
     "that a random seed of a beats one of b (ties count half), with its interval; p: Mann-Whitney U test "
-    "on the per-seed metric, one-sided in the registered direction (two-sided when none), exact without "
-    "ties; p (Holm): adjusted over the experiment's {m} comparison(s). A difference is *detected* when "
-    "p (Holm) < {alpha}. MDE: the smallest effect this study detects with {power:.0%} power at level "
+    "on the per-seed metric, one-sided in the registered direction (two-sided when none); p method: "
+    "SciPy's exact distribution when no two seeds tie, else the normal approximation with tie "
+    "correction; p (Holm): adjusted over the experiment's {m} comparison(s). A difference is *detected* "
+    "when p (Holm) < {alpha}, *detected, smaller than the relevant effect* when the whole 95% interval "
+    "also lies below the registered min_effect. Flags: an arm whose 95% interval of the metric comes "
+    "within {margin} of 0 (floor) or 1 (ceiling): a difference there is capped by the bound, not evidence "
+    "of none. MDE: the smallest effect this study detects with {power:.0%} power at level "
     "{alpha} / {m} (normal approximation with the effect's bootstrap standard deviation); a "
     "non-detection says nothing about effects smaller than it."
 )
@@ -349,13 +425,15 @@ def markdown_summary(
             "effect [95%]",
             "P(a > b) [95%]",
             "p",
+            "p method",
             "p (Holm)",
             "MDE",
             "verdict",
+            "flags",
         ]
         lines += [
             "| " + " | ".join(header) + " |",
-            "| --- | --- | ---: | --- | --- | ---: | ---: | ---: | --- |",
+            "| --- | --- | ---: | --- | --- | ---: | --- | ---: | ---: | --- | --- |",
         ]
         sides = {"greater": ">", "less": "<", "two-sided": "vs"}
         for c in compared:
@@ -366,9 +444,11 @@ def markdown_summary(
                 f"{c['effect']:+.3f} [{c['effect_ci_low']:+.3f}, {c['effect_ci_high']:+.3f}]",
                 f"{c['poi']:.2f} [{c['poi_ci_low']:.2f}, {c['poi_ci_high']:.2f}]",
                 f"{c['p']:.3g}",
+                c["p_method"],
                 f"{c['p_holm']:.3g}",
                 f"{c['mde']:.3f}",
                 c["verdict"],
+                c["flags"],
             ]
             lines.append("| " + " | ".join(cells) + " |")
         if len(compared) < registered:
@@ -378,7 +458,9 @@ def markdown_summary(
             ]
         lines += [
             "",
-            _HOW_TO_READ_COMPARISONS.format(m=registered, alpha=st.ALPHA, power=st.POWER),
+            _HOW_TO_READ_COMPARISONS.format(
+                m=registered, alpha=st.ALPHA, power=st.POWER, margin=st.BOUND_MARGIN
+            ),
             "",
             f"![AUC performance profile]({PROFILE_PNG})",
             "",
@@ -436,3 +518,13 @@ def _experiment_info(results_dir: Path) -> dict[str, Any]:
 
 def _experiment_name(results_dir: Path) -> str:
     return _experiment_info(results_dir).get("name") or results_dir.resolve().name
+
+
+def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out |= _flatten(v, f"{prefix}{k}.")
+        else:
+            out[prefix + k] = v
+    return out

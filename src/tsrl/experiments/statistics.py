@@ -2,7 +2,8 @@
 Precipice"): interquartile means with stratified-bootstrap intervals, probability of improvement,
 performance profiles; and what rliable lacks: the normalised area under a success curve, Kaplan-Meier
 time to a threshold (seeds that never reach it are censored, not dropped), one-sided Mann-Whitney
-p-values, Holm's correction and the minimum detectable effect.
+p-values (exact where SciPy can), Holm's correction, the minimum detectable effect, the verdict rule
+and floor/ceiling flags.
 
 One interval method everywhere (`tsrl report`, `tsrl plot`): the 95% percentile interval of rliable's
 stratified bootstrap (what `rliable.library.get_interval_estimates` returns with method="percentile"),
@@ -167,13 +168,31 @@ def km_median(times: np.ndarray, reached: np.ndarray) -> float:
     return float(event_times[below[0]]) if len(below) else math.inf
 
 
+#: The largest n_a x n_b at which SciPy's exact Mann-Whitney distribution is used (without ties).
+EXACT_MAX_PAIRS = 10_000
+MannWhitneyMethod = Literal["exact", "normal approximation, tie-corrected", "none: every score equal"]
+
+
+def mann_whitney_method(x: np.ndarray, y: np.ndarray) -> MannWhitneyMethod:
+    """How mann_whitney_p computes p for scores x and y: SciPy's exact null distribution when no score
+    is tied and n_x n_y <= EXACT_MAX_PAIRS (the exact distribution assumes no ties), otherwise the normal
+    approximation with tie and continuity correction; no test when every score is the same."""
+    scores = np.concatenate([x, y])
+    if np.ptp(scores) == 0:
+        return "none: every score equal"
+    if len(np.unique(scores)) == len(scores) and len(x) * len(y) <= EXACT_MAX_PAIRS:
+        return "exact"
+    return "normal approximation, tie-corrected"
+
+
 def mann_whitney_p(x: np.ndarray, y: np.ndarray, direction: Direction) -> float:
-    """p-value of the Mann-Whitney U test of per-seed scores x against y (scipy's exact distribution
-    without ties, the normal approximation with tie correction otherwise); direction "greater": the
-    alternative is that x tends to exceed y."""
-    if np.ptp(np.concatenate([x, y])) == 0:
+    """p-value of the Mann-Whitney U test of per-seed scores x against y, by mann_whitney_method;
+    direction "greater": the alternative is that x tends to exceed y."""
+    method = mann_whitney_method(x, y)
+    if method == "none: every score equal":
         return 1.0  # every seed of both arms has the same score: no evidence either way
-    return float(scipy.stats.mannwhitneyu(x, y, alternative=direction).pvalue)
+    scipy_method = "exact" if method == "exact" else "asymptotic"
+    return float(scipy.stats.mannwhitneyu(x, y, alternative=direction, method=scipy_method).pvalue)
 
 
 def holm(p_values: Sequence[float]) -> np.ndarray:
@@ -206,17 +225,26 @@ def verdict(
     min_effect: float | None,
 ) -> str:
     """What a comparison's data can say, and no more: a difference is "detected" only at a
-    Holm-adjusted p below ALPHA; otherwise "no detectable difference at this power", with the
-    minimum detectable effect and, when the comparison states the effect that matters (`min_effect`,
-    e.g. the paper's), whether the interval excludes it, whether the study could have detected it,
-    or that it could not (inconclusive)."""
+    Holm-adjusted p below ALPHA, and "detected, smaller than the relevant effect" when the comparison
+    states the effect that matters (`min_effect`, e.g. the paper's) and the whole 95% interval lies
+    on the near side of it; otherwise "no detectable difference at this power", with the minimum
+    detectable effect and, with `min_effect`, whether the interval excludes it, whether the study could
+    have detected it, or that it could not (inconclusive)."""
     if p_holm >= ALPHA and effect.sd[0] == 0:
         return (
             "no detectable difference; the seeds of each arm scored alike, so the power cannot be estimated"
         )
     if p_holm < ALPHA:
         higher = direction == "greater" or (direction == "two-sided" and effect.point[0] > 0)
-        return f"detected: {a} {'above' if higher else 'below'} {b}"
+        found = f"{a} {'above' if higher else 'below'} {b}"
+        # the interval's far end on the detected side: its largest distance from 0 in that direction
+        far = effect.high[0] if higher else -effect.low[0]
+        if min_effect is not None and far < min_effect:
+            return (
+                f"detected, smaller than the relevant effect: {found} by less than {min_effect:g} "
+                "(the whole 95% interval)"
+            )
+        return f"detected: {found}"
     text = f"no detectable difference at this power (detectable with {POWER:.0%} power: {mde:.3g})"
     if min_effect is None:
         return text
@@ -228,3 +256,16 @@ def verdict(
     if mde <= min_effect:
         return f"{text}; it had the power to detect an effect of {min_effect:g} and did not"
     return f"{text}; too few seeds to detect an effect of {min_effect:g}: inconclusive"
+
+
+BOUND_MARGIN = 0.02
+"""An interval of a rate within this of 0 or 1 touches the floor or the ceiling (0.02: one
+evaluation episode in 50, the studies' resolution)."""
+
+
+def bound_flags(low: float, high: float) -> str:
+    """ "floor" when an interval of a rate in [0, 1] (success, AUC) touches 0, "ceiling" when it
+    touches 1 (within BOUND_MARGIN), both joined by ", ", or "": a difference at a bound says little,
+    the bound caps it."""
+    flags = ["floor"] * bool(low <= BOUND_MARGIN) + ["ceiling"] * bool(high >= 1 - BOUND_MARGIN)
+    return ", ".join(flags)
