@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 
-from ..agents.config import TrainConfig
 from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
 from ..configs import load_table
 from ..envs import OBS_PRESETS
@@ -39,6 +38,7 @@ from . import statistics as st
 from .config import EVAL_METRIC, EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
 from .curves import FINAL_EVALS, Curve, curves, row_key
 from .plots import plot_curves, plot_profile
+from .results import find_runs, variants
 from .runner import ERROR_FILE
 from .statistics import THRESHOLDS
 
@@ -64,45 +64,6 @@ CURVES_PNG = "learning_curves.png"
 PROFILE_PNG = "performance_profile.png"
 #: Thresholds of the AUC performance profile.
 PROFILE_TAUS = np.linspace(0.0, 1.0, 51)
-
-
-def find_runs(results_dir: Path) -> list[Path]:
-    """Run folders (holding config.json) directly inside `results_dir`, sorted by name."""
-    results_dir = Path(results_dir)
-    if not results_dir.is_dir():
-        raise InvalidConfig(f"results folder {results_dir} does not exist")
-    runs = sorted(p for p in results_dir.iterdir() if (p / CONFIG_FILE).is_file())
-    if not runs:
-        raise InvalidConfig(
-            f"no run folders in {results_dir} (a run folder holds {CONFIG_FILE}); pass an experiment's "
-            "results folder, e.g. results/quick-reach"
-        )
-    return runs
-
-
-#: Config fields that are grid axes, or that do not change what a run learns: not part of a variant.
-_NOT_VARIANT = {
-    "env_id",
-    "obs",
-    "action",
-    "agent.algo",
-    "seed",
-    "total_timesteps",
-    "checkpoint_freq",
-    "torch_threads",
-}
-
-
-def variants(cfgs: list[TrainConfig]) -> list[str]:
-    """Per config, the settings (beyond env, obs, action, algo, seed) that differ among `cfgs`, as
-    `field=value, ...`; empty when all share them (as the runs of one experiment do)."""
-    flat = [{k: v for k, v in _flatten(c.to_dict()).items() if k not in _NOT_VARIANT} for c in cfgs]
-    for f, cfg in zip(flat, cfgs, strict=True):  # an experiment's [demos] records one file per
-        del f["agent.demos.path"]  # (env, obs, action): on or off is the variant (sha256: demos.json)
-        f["agent.demos"] = cfg.agent.demos.active
-        f["init_from"] = cfg.init_from is not None  # each seed its own source: started from one or not
-    fields = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
-    return [", ".join(f"{k}={f.get(k)}" for k in fields) for f in flat]
 
 
 def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
@@ -518,13 +479,3 @@ def _experiment_info(results_dir: Path) -> dict[str, Any]:
 
 def _experiment_name(results_dir: Path) -> str:
     return _experiment_info(results_dir).get("name") or results_dir.resolve().name
-
-
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out |= _flatten(v, f"{prefix}{k}.")
-        else:
-            out[prefix + k] = v
-    return out
