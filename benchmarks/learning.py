@@ -9,8 +9,12 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # vs without, same seeds: 5 seeds, 50,000 env steps, 100 eval episodes
     python benchmarks/learning.py panda    # tsrl/PandaReach-v0 (fs1) beside tsrl/UR5eReach-v0 (fs1), same seeds:
                                            # every Panda seed at >= 95% within 2x the UR5e's env steps?
-    python benchmarks/learning.py speed    # learner speed: gradient steps/s, plain SB3 DDPG + HER vs tsrl's
-                                           # feature HER vs with demonstrations (BC + Q-filter)
+    python benchmarks/learning.py speed    # learner speed: gradient steps/s of each learner option (plain SB3
+                                           # DDPG + HER, feature HER, demonstrations, LayerNorm, TQC, ...)
+                                           # next to the matrix-multiply floor of the same batch and networks
+    python benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
+                                           # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
+                                           # 100 eval episodes; --without OPTION: one option at the paper's value
     python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
@@ -48,22 +52,46 @@ THRESHOLDS = (0.5, 0.9, 0.95)
 PICK = "tsrl/UR5ePickPlace-v0"
 PANDA = "tsrl/PandaReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
-BUDGETS = {"demos": (50_000, 2_500, 100), "own-robot": (10_000, 250, 20)}
+BUDGETS = {"demos": (50_000, 2_500, 100), "learner": (15_000, 2_500, 100), "own-robot": (10_000, 250, 20)}
 BUDGET = (6_000, 200, 20)
 #: The demos suite's demonstrations: the scripted controller's, recorded once (seed 0, successes only).
 DEMO_EPISODES = 100
+#: The learner suite's ablations (--without): each sets one option of the fast preset to the paper's value.
+WITHOUT: dict[str, dict[str, Any]] = {
+    "layer_norm": {"layer_norm": "none"},
+    "utd": {"utd": 0.4},  # the paper's 40 gradient steps per update of 2 x 50 env steps
+    "symmetric": {"demos": {"batch_share": 0.125}},
+    "resets": {"demos": {"reset_prob": 0.0}},
+}
 #: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
 OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch_reach.toml"
 #: The own-robot target: every seed at this evaluation success within the budget.
 OWN_ROBOT_TARGET = 0.9
 
 
+def learner_agent(demos: Path, without: str | None = None) -> AgentConfig:
+    """The learner suite's agent: the fast preset with the demonstrations, optionally `without` one option."""
+    change = WITHOUT[without] if without is not None else {}
+    demo_cfg = DemoConfig(path=str(demos), **change.get("demos", {}))
+    return AgentConfig(learner="fast", demos=demo_cfg, **{k: v for k, v in change.items() if k != "demos"})
+
+
 def configs(
-    suite: str, seeds: list[int], total: int, eval_freq: int, eval_episodes: int, demos: Path | None = None
+    suite: str,
+    seeds: list[int],
+    total: int,
+    eval_freq: int,
+    eval_episodes: int,
+    demos: Path | None = None,
+    without: str | None = None,
 ) -> list[TrainConfig]:
     """The runs of a suite; agent settings are AgentConfig's defaults (the paper's) throughout, and
-    DemoConfig's for the runs with demonstrations."""
+    DemoConfig's for the runs with demonstrations, but in the learner suite (the fast preset)."""
     common = {"total_timesteps": total, "eval_freq": eval_freq, "eval_episodes": eval_episodes}
+    if suite == "learner":
+        assert demos is not None
+        agent = learner_agent(demos, without)
+        return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
     if suite == "demos":
         assert demos is not None
         with_demos = AgentConfig(demos=DemoConfig(path=str(demos)))
@@ -103,9 +131,10 @@ def configs(
 
 
 def run_one(args: tuple[TrainConfig, Path]) -> Path:
-    """Trains (or resumes, or reuses) one run in <out>/<fetch|reach>/<run name>.
+    """Trains (or resumes, or reuses) one run in <out>/<fetch|reach|...>/<run name>.
 
-    The `her` suite's feature-aware runs are the `tsrl` suite's runs (same config, same folder).
+    The `her` suite's feature-aware runs are the `tsrl` suite's runs (same config, same folder); the
+    learner suite's ablations (--without OPTION) get <out>/without-<option>/pick-place (same run names).
     """
     cfg, out_dir = args
     if cfg.env_id.startswith("Fetch"):
@@ -297,7 +326,13 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument(
-        "suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot"]
+        "suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner"]
+    )
+    parser.add_argument(
+        "--without",
+        choices=sorted(WITHOUT),
+        default=None,
+        help="learner suite: this option at the paper's value",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
     parser.add_argument(
@@ -319,7 +354,7 @@ def main() -> None:
     if args.suite == "speed":
         speed(args.seeds or [0, 1], args.out_dir)
         return
-    seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite == "demos" else [0, 1, 2])
+    seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in ("demos", "learner") else [0, 1, 2])
     total, eval_freq, eval_episodes = (
         given if given is not None else default
         for given, default in zip(
@@ -328,20 +363,19 @@ def main() -> None:
             strict=True,
         )
     )
-    demos = record_benchmark_demos(args.out_dir) if args.suite == "demos" else None
+    demos = record_benchmark_demos(args.out_dir) if args.suite in ("demos", "learner") else None
     suites = ["tsrl", "fetch", "her"] if args.suite == "all" else [args.suite]
     cfgs = [
         cfg
         for suite in suites
-        for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos)
+        for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, args.without)
         if not (args.no_demos_only and cfg.agent.demos.active)
     ]
-    work = list(
-        {(cfg.env_id, cfg.run_name): (cfg, args.out_dir) for cfg in cfgs}.values()
-    )  # shared runs once
+    out_dir = args.out_dir / f"without-{args.without}" if args.without else args.out_dir
+    work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
     print(
         f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
-        f"on {eval_episodes} episodes; agent: {AgentConfig()}",
+        f"on {eval_episodes} episodes; agent: {cfgs[0].agent if args.suite == 'learner' else AgentConfig()}",
         flush=True,
     )
     if args.jobs > 1:
@@ -358,9 +392,12 @@ def main() -> None:
             label += (
                 f" demos={Path(d.path).name} share={d.batch_share} bc={d.bc_weight} q_filter={d.q_filter}"
             )
+        if cfg.agent.learner != "paper":
+            a = cfg.agent
+            label += f" learner={a.learner} layer_norm={a.layer_norm} utd={a.utd} resets={a.demos.reset_prob}"
         groups.setdefault(label, []).append(run_dir)
     for label, run_dirs in groups.items():
-        summarize(label, run_dirs, train_time=args.suite == "demos")
+        summarize(label, run_dirs, train_time=args.suite in ("demos", "learner"))
     if args.suite == "panda":
         panda_within_twice_ur5e(groups)
     if args.suite == "own-robot":

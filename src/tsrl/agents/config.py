@@ -23,11 +23,23 @@ from ..envs.keys import OBS_KEYS
 from ..envs.observations import OBS_PRESETS
 from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_number
 
-Algo = Literal["ddpg", "td3", "sac"]
+Algo = Literal["ddpg", "td3", "sac", "tqc"]
+Learner = Literal["paper", "fast"]
+LayerNorm = Literal["none", "critic", "both"]
 HerRelabel = Literal["feature", "plain"]
 HerStrategy = Literal["future", "final", "episode"]
-#: The algorithms (stable-baselines3 classes of the same name, upper case; tsrl.agents.factory).
+#: The algorithms (stable-baselines3's or sb3-contrib's class of the same name, upper case;
+#: tsrl.agents.factory).
 ALGOS: tuple[str, ...] = typing.get_args(Algo)
+LEARNERS: tuple[str, ...] = typing.get_args(Learner)
+LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
+#: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
+#: agent (the paper's settings); fast: chosen by `benchmarks/learning.py learner` (docs/training.md).
+#: demos_reset_prob applies only where demonstrations are on.
+LEARNER_PRESETS: dict[str, dict[str, Any]] = {
+    "paper": {"layer_norm": "none", "utd": None, "demos_batch_share": 0.125, "demos_reset_prob": 0.0},
+    "fast": {"layer_norm": "critic", "utd": 2.0, "demos_batch_share": 0.5, "demos_reset_prob": 0.5},
+}
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
 HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 #: Keys of a goal environment's observation dict that the networks may see (AgentConfig.policy_inputs).
@@ -96,9 +108,23 @@ class DemoConfig:
 
     path: Annotated[str | None, arg(name="demos", aliases=("--demos-path",))] = None
     """Demonstration file (.npz, written by `tsrl demos record`); None: no demonstrations."""
-    batch_share: Annotated[float, arg(name="demos-batch-share")] = 0.125
-    """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay
-    (Nair et al.: 128 of 1024); 0: demonstrations off."""
+    batch_share: Annotated[float | None, arg(name="demos-batch-share")] = None
+    """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay, in
+    [0, 1); 0: demonstrations off. Default: the learner's (paper: 0.125, Nair et al.'s 128 of 1024;
+    fast: 0.5, RLPD's symmetric sampling)."""
+    batch_share_end: Annotated[float | None, arg(name="demos-batch-share-end")] = None
+    """The share reached after `batch_share_steps` env steps, linearly from `batch_share` (then held);
+    None: the share stays `batch_share`."""
+    batch_share_steps: Annotated[int, arg(name="demos-batch-share-steps")] = 0
+    """Env steps over which the share goes from `batch_share` to `batch_share_end`."""
+    reset_prob: Annotated[float | None, arg(name="demos-reset-prob")] = None
+    """Probability that a training episode starts from a demonstration's state (a random episode and
+    step of the file, restored exactly; Nair et al. 2018) instead of the task's reset. Default: the
+    learner's where demonstrations are on (paper: 0; fast: 0.5), else 0."""
+    reset_curriculum_steps: Annotated[int, arg(name="demos-reset-curriculum-steps")] = 0
+    """0: the restored step is uniform over the demonstration; N > 0: a reverse curriculum, the
+    restored step drawn from the last steps of the demonstration, a window that grows linearly from
+    the last step to the whole episode over N env steps."""
     bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
     """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
     next to the actor's -mean Q; 0: demonstrations off (no demonstration rows, no BC loss: the agent
@@ -110,11 +136,29 @@ class DemoConfig:
     def __post_init__(self) -> None:
         if self.path is not None and (not isinstance(self.path, str) or not self.path):
             raise InvalidConfig(f"demos path must be a file path or None; got {self.path!r}")
-        if not is_number(self.batch_share):
-            raise InvalidConfig(f"demos batch_share must be a number; got {self.batch_share!r}")
-        if not 0 <= self.batch_share < 1:
-            raise InvalidConfig(f"demos batch_share must be in [0, 1); got {self.batch_share}")
+        for name in ("batch_share", "batch_share_end"):
+            share = getattr(self, name)
+            if share is None:
+                continue
+            if not is_number(share):
+                raise InvalidConfig(f"demos {name} must be a number; got {share!r}")
+            if not 0 <= share < 1:
+                raise InvalidConfig(f"demos {name} must be in [0, 1); got {share}")
         check_positive("demos bc_weight", self.bc_weight, strict=False)
+        check_int("demos batch_share_steps", self.batch_share_steps, 0)
+        if (self.batch_share_end is None) != (self.batch_share_steps == 0):
+            raise InvalidConfig(
+                f"demos batch_share_end {self.batch_share_end} with batch_share_steps "
+                f"{self.batch_share_steps}: give both (a share and the env steps > 0 to reach it) or neither"
+            )
+        if self.reset_prob is not None and (not is_number(self.reset_prob) or not 0 <= self.reset_prob <= 1):
+            raise InvalidConfig(f"demos reset_prob must be in [0, 1]; got {self.reset_prob!r}")
+        check_int("demos reset_curriculum_steps", self.reset_curriculum_steps, 0)
+        if self.reset_curriculum_steps > 0 and self.reset_prob == 0:
+            raise InvalidConfig(
+                f"demos reset_curriculum_steps {self.reset_curriculum_steps} with reset_prob 0: a reset "
+                "curriculum needs demonstration resets; accepted: reset_prob > 0, or reset_curriculum_steps 0"
+            )
 
     @property
     def active(self) -> bool:
@@ -122,7 +166,8 @@ class DemoConfig:
 
         Either at 0 turns them off: the file is not read, the run is the one without demonstrations
         (its name, its agent, its run folder). Every "are demonstrations on?" asks this."""
-        return self.path is not None and self.batch_share > 0 and self.bc_weight > 0
+        share = self.batch_share
+        return self.path is not None and (share is None or share > 0) and self.bc_weight > 0
 
 
 @dataclass(frozen=True)
@@ -130,7 +175,20 @@ class AgentConfig:
     """Off-policy algorithm + HER; defaults are the paper's settings where it gives them."""
 
     algo: Algo = "ddpg"
-    """Off-policy algorithm, always combined with HER (paper: DDPG)."""
+    """Off-policy algorithm, always combined with HER (paper: DDPG; tqc: sb3-contrib's TQC, a
+    distributional critic)."""
+    learner: Learner = "paper"
+    """Preset of the learner options left unset (layer_norm, utd, demos batch share and reset
+    probability): paper (today's agent, the paper's settings) or fast (LayerNorm critic, UTD 2,
+    symmetric demonstration sampling and demonstration resets; docs/training.md). Options given
+    explicitly win."""
+    layer_norm: LayerNorm | None = None
+    """LayerNorm after every hidden layer, before its ReLU (RLPD, Ball et al. 2023): none, critic,
+    or both (critic and actor). Default: the learner's (paper: none)."""
+    utd: float | None = None
+    """Update-to-data ratio: gradient steps per env step (e.g. 2: 200 per update of two 50-step
+    episodes), replacing gradient_steps. Default: the learner's (paper: none, gradient_steps per
+    update)."""
     net_arch: tuple[int, ...] = (256, 256)
     """Hidden layers of actor and critic MLPs (paper: [256, 256])."""
     policy_inputs: tuple[str, ...] = POLICY_INPUTS
@@ -172,6 +230,14 @@ class AgentConfig:
 
     def __post_init__(self) -> None:
         _choice("algo", self.algo, ALGOS)
+        _choice("learner", self.learner, LEARNERS)
+        self._resolve_learner()
+        _choice("layer_norm", self.layer_norm, LAYER_NORMS)
+        if self.utd is not None and (not is_number(self.utd) or not self.utd > 0):
+            raise InvalidConfig(
+                f"utd {self.utd!r}: the update-to-data ratio is gradient steps per env step, > 0 "
+                "(e.g. 0.5, 1, 2); accepted: a number > 0, or None for gradient_steps per update"
+            )
         if not self.net_arch or any(not is_int(n) or n < 1 for n in self.net_arch):
             raise InvalidConfig(
                 f"net_arch must be positive layer widths, e.g. 256 256; got {self.net_arch!r}"
@@ -191,6 +257,27 @@ class AgentConfig:
             raise InvalidConfig(f"gamma must be in (0, 1]; got {self.gamma}")
         if not 0 < self.tau <= 1:
             raise InvalidConfig(f"tau must be in (0, 1]; got {self.tau}")
+
+    def _resolve_learner(self) -> None:
+        """Options left at None get the learner preset's value (LEARNER_PRESETS); resets to
+        demonstration states without demonstrations are refused here, before the reset probability is."""
+        preset = LEARNER_PRESETS[self.learner]
+        for name in ("layer_norm", "utd"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, preset[name])
+        demos = self.demos
+        if demos.batch_share is None:
+            demos = dataclasses.replace(demos, batch_share=preset["demos_batch_share"])
+        if not demos.active and (demos.reset_prob or demos.reset_curriculum_steps):
+            raise InvalidConfig(
+                f"demos reset_prob {demos.reset_prob} / reset_curriculum_steps {demos.reset_curriculum_steps} "
+                "without demonstrations: resets to demonstration states need a demonstration file "
+                "(--demos) with batch_share and bc_weight > 0; accepted without: reset_prob 0, "
+                "reset_curriculum_steps 0"
+            )
+        if demos.reset_prob is None:
+            demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"] if demos.active else 0.0)
+        object.__setattr__(self, "demos", demos)
 
 
 @dataclass(frozen=True)
@@ -293,11 +380,13 @@ class TrainConfig:
 
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
-        (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`.
+        (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
+        runs of another learner preset than paper `__<learner>` (e.g. `__fast`).
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
         suffix += "__init" if self.init_from is not None else ""
+        suffix += "" if self.agent.learner == "paper" else f"__{self.agent.learner}"
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

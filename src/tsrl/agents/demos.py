@@ -3,7 +3,7 @@
 - **A demonstration buffer.** `DemoReplayBuffer` is the run's `FeatureHerReplayBuffer` with a second
   one beside it that holds the demonstration episodes (a file of tsrl.agents.demo_files), HER-relabelled
   the same feature-aware way; each minibatch draws `batch_share` of its rows from it (the last rows of
-  the batch).
+  the batch), a share that may follow a linear schedule over the env steps stored.
 - **A Q-filtered behaviour-cloning loss.** `attach_bc_loss` registers a step pre-hook on the actor's
   optimizer: stable-baselines3 runs `zero_grad(); actor_loss.backward(); step()`, and the hook
   back-propagates `bc_weight * L_BC` on the demonstration rows of the batch just sampled before the
@@ -13,8 +13,8 @@
 
     L_BC = 1/n_demo * sum_i 1[Q(s_i, a_i) > Q(s_i, pi(s_i))] * ||pi(s_i) - a_i||^2
 
-Q is the critic's first head (the one DDPG's and TD3's actor maximise). Without `q_filter` every
-demonstration row counts.
+Q is the critic's first head (the one DDPG's and TD3's actor maximise; for TQC the mean of its first
+critic's quantiles). Without `q_filter` every demonstration row counts.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch as th
+from sb3_contrib import TQC
 from stable_baselines3 import SAC
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
@@ -46,13 +47,38 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
 
     Args (beyond FeatureHerReplayBuffer's):
         demo_share: fraction of each batch drawn from the demonstrations, in [0, 1).
+        demo_share_end: the fraction once `demo_share_steps` transitions have been added to the
+            replay, linearly from demo_share (then held); None: demo_share throughout.
+        demo_share_steps: see demo_share_end.
     """
 
-    def __init__(self, *args: Any, demo_share: float = 0.125, **kwargs: Any):
+    def __init__(
+        self,
+        *args: Any,
+        demo_share: float = 0.125,
+        demo_share_end: float | None = None,
+        demo_share_steps: int = 0,
+        **kwargs: Any,
+    ):
         super().__init__(*args, **kwargs)
         self.demo_share = demo_share
+        self.demo_share_end = demo_share_end
+        self.demo_share_steps = demo_share_steps
+        self.n_added = 0
         self.demo_buffer: FeatureHerReplayBuffer | None = None
         self.last_demo_batch: DictReplayBufferSamples | None = None
+
+    def add(self, *args: Any, **kwargs: Any) -> None:
+        super().add(*args, **kwargs)
+        self.n_added += self.n_envs
+
+    def share(self) -> float:
+        """The demonstration share of the next batch (the schedule of the Args)."""
+        end = getattr(self, "demo_share_end", None)  # None in buffers pickled before the schedule
+        if end is None:
+            return self.demo_share
+        done = min(1.0, self.n_added / self.demo_share_steps)
+        return self.demo_share + done * (end - self.demo_share)
 
     def set_demos(self, demos: Demonstrations) -> None:
         """Fills the demonstration buffer with the episodes of `demos` (replacing any)."""
@@ -86,12 +112,13 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
 
     def demo_rows(self, batch_size: int) -> int:
         """Rows of a batch of `batch_size` drawn from the demonstrations."""
-        return 0 if self.demo_buffer is None else round(self.demo_share * batch_size)
+        return 0 if self.demo_buffer is None else round(self.share() * batch_size)
 
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> DictReplayBufferSamples:  # type: ignore[override]
         """(batch_size - n) replay rows, then n demonstration rows (n = demo_rows(batch_size))."""
         n = self.demo_rows(batch_size)
         if n == 0:
+            self.last_demo_batch = None  # a share scheduled down to 0: no stale rows for the BC loss
             return super().sample(batch_size, env)
         replay = super().sample(batch_size - n, env)
         assert self.demo_buffer is not None
@@ -176,7 +203,7 @@ class BCLoss:
 
     def _actor_action(self, obs: dict[str, th.Tensor]) -> th.Tensor:
         actor = self.model.actor  # type: ignore[attr-defined]
-        return actor(obs, deterministic=True) if isinstance(self.model, SAC) else actor(obs)
+        return actor(obs, deterministic=True) if isinstance(self.model, (SAC, TQC)) else actor(obs)
 
     def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
         buffer = self.model.replay_buffer
@@ -187,12 +214,20 @@ class BCLoss:
         with th.enable_grad():
             pi = self._actor_action(demo.observations)
             with th.no_grad():
-                q_demo = critic.q1_forward(demo.observations, demo.actions)
-                q_actor = critic.q1_forward(demo.observations, pi)
+                q_demo = first_q(critic, demo.observations, demo.actions)
+                q_actor = first_q(critic, demo.observations, pi)
             loss, mask = q_filtered_bc_loss(pi, demo.actions, q_demo, q_actor, self.q_filter)
             (self.weight * loss).backward()
         self.model.logger.record("train/bc_loss", loss.item())
         self.model.logger.record("train/q_filter_pass", mask.float().mean().item())
+
+
+def first_q(critic: th.nn.Module, obs: dict[str, th.Tensor], actions: th.Tensor) -> th.Tensor:
+    """(n, 1) Q values of the critic's first head: q1_forward of stable-baselines3's critics; the
+    mean of the first critic's quantiles for TQC's (whose forward gives (n, critics, quantiles))."""
+    if hasattr(critic, "q1_forward"):
+        return critic.q1_forward(obs, actions)
+    return critic(obs, actions)[:, 0].mean(dim=1, keepdim=True)
 
 
 def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandle:

@@ -1,7 +1,7 @@
-"""make_env / make_vec_env / make_agent: DDPG, TD3 or SAC with (feature-aware) HER, built by a factory.
+"""make_env / make_vec_env / make_agent: DDPG, TD3, SAC or TQC with (feature-aware) HER, built by a factory.
 
-Algorithms are stable-baselines3's own classes, never subclassed; HER enters as the replay buffer
-class. Observation normalisation is a VecNormalize wrapper (running mean and std of observation,
+Algorithms are stable-baselines3's (TQC: sb3-contrib's) own classes, never subclassed; HER enters as
+the replay buffer class, LayerNorm as the policy class (tsrl.agents.learners). Observation normalisation is a VecNormalize wrapper (running mean and std of observation,
 achieved and desired goal; rewards untouched) whose statistics the checkpoints save.
 """
 
@@ -11,6 +11,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import sb3_contrib
 import stable_baselines3
 from gymnasium import spaces
 from stable_baselines3.common.monitor import Monitor
@@ -23,10 +24,12 @@ from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .config import ALGOS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
+from .learners import policy_for
 
-#: stable-baselines3's class of each algorithm name (DDPG for "ddpg", ...).
+#: stable-baselines3's (or sb3-contrib's) class of each algorithm name (DDPG for "ddpg", ...).
 ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
-    name: getattr(stable_baselines3, name.upper()) for name in ALGOS
+    name: getattr(stable_baselines3, name.upper(), None) or getattr(sb3_contrib, name.upper())
+    for name in ALGOS
 }
 
 
@@ -56,11 +59,12 @@ def make_env(cfg: TrainConfig, render_mode: str | None = None, **kwargs: Any) ->
 
 
 def make_vec_env(cfg: TrainConfig) -> VecEnv:
-    """The training VecEnv: one Monitor-wrapped env, inside VecNormalize when cfg.agent.normalize.
+    """The training VecEnv: one Monitor-wrapped env, inside VecNormalize when cfg.agent.normalize, with
+    resets to demonstration states when the demonstrations' reset_prob > 0 (tsrl.agents.demo_resets).
 
     VecNormalize only scales what the networks see; the replay buffer stores raw observations.
     """
-    venv: VecEnv = DummyVecEnv([lambda: Monitor(make_env(cfg))])
+    venv: VecEnv = DummyVecEnv([lambda: Monitor(_training_env(cfg))])
     if cfg.agent.normalize:
         venv = VecNormalize(
             venv,
@@ -71,6 +75,31 @@ def make_vec_env(cfg: TrainConfig) -> VecEnv:
             gamma=cfg.agent.gamma,
         )
     return venv
+
+
+def _training_env(cfg: TrainConfig) -> gym.Env:
+    env = make_env(cfg)
+    demos = cfg.agent.demos
+    if not demos.reset_prob:
+        return env
+    from .demo_files import DemoSpec, load_demos
+    from .demo_resets import DemoResets, replay_states
+
+    assert demos.path is not None  # AgentConfig: resets need demonstrations
+    replay = make_env(cfg)
+    try:
+        states = replay_states(replay, load_demos(demos.path, DemoSpec.of(env)), demos.path)
+    finally:
+        replay.close()
+    return DemoResets(env, states, demos.reset_prob, demos.reset_curriculum_steps, cfg.seed)
+
+
+def gradient_steps(cfg: TrainConfig, episode_steps: int) -> int:
+    """Gradient steps per update: AgentConfig.gradient_steps, or utd x the env steps of an update."""
+    a = cfg.agent
+    if a.utd is None:
+        return a.gradient_steps
+    return max(1, round(a.utd * a.train_freq_episodes * episode_steps))
 
 
 def buffer_capacity(cfg: TrainConfig, episode_steps: int) -> int:
@@ -93,7 +122,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         "tau": a.tau,
         "gamma": a.gamma,
         "train_freq": (a.train_freq_episodes, "episode"),
-        "gradient_steps": a.gradient_steps,
+        "gradient_steps": gradient_steps(cfg, episode_steps),
         "replay_buffer_class": FeatureHerReplayBuffer,
         "replay_buffer_kwargs": {
             "n_sampled_goal": a.her.n_sampled_goal,
@@ -110,14 +139,21 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         "device": "cpu",
         "verbose": 0,
     }
+    policy = policy_for(a.algo, a.layer_norm)  # type: ignore[arg-type]
+    if a.layer_norm != "none":
+        kwargs["policy_kwargs"]["layer_norm"] = a.layer_norm
     if a.algo in ("ddpg", "td3") and a.action_noise > 0:
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
     if a.demos.active:  # demonstration buffer beside the replay, Q-filtered BC loss (agents/demos.py)
         from .demos import DemoReplayBuffer, attach_demos
 
         kwargs["replay_buffer_class"] = DemoReplayBuffer
-        kwargs["replay_buffer_kwargs"]["demo_share"] = a.demos.batch_share
-        model = ALGO_CLASSES[a.algo]("MultiInputPolicy", env, **kwargs)
+        kwargs["replay_buffer_kwargs"] |= {
+            "demo_share": a.demos.batch_share,
+            "demo_share_end": a.demos.batch_share_end,
+            "demo_share_steps": a.demos.batch_share_steps,
+        }
+        model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
         attach_demos(model, a.demos, env if isinstance(env, VecNormalize) else None)
         return model
-    return ALGO_CLASSES[a.algo]("MultiInputPolicy", env, **kwargs)
+    return ALGO_CLASSES[a.algo](policy, env, **kwargs)

@@ -1,0 +1,125 @@
+"""Resets to demonstration states (Nair et al. 2018): a training episode starts, with a probability,
+from a state a demonstration passed through, restored exactly.
+
+A demonstration file (tsrl.agents.demo_files) holds each episode's seed and actions, and the
+environments are deterministic: `replay_states` replays every episode once on a fresh copy of the
+run's environment, keeps MuJoCo's full integration state (mjSTATE_INTEGRATION: time, qpos, qvel, act,
+warm start, ctrl, applied forces, equality flags, mocap poses, user data) after the reset and after
+each step, and checks that the replay reproduces the file's observations bit for bit (a file the
+environment does not reproduce is one DemoFileError naming the episode and step). So every file,
+old ones included, can be reset to; the files need no state arrays.
+
+`DemoResets` wraps the training environment (not the evaluation ones): after the task's own reset,
+with probability `prob` it restores a demonstration state (a uniform episode and step, or with a
+reverse curriculum a step among the demonstration's last ones) and returns that state's observation.
+Its draws come from its own generator, seeded from the run's seed.
+
+`restore_state` is the one place that writes a state into the environment: MuJoCo's public
+`mj_setState` / `mj_forward` on `env.unwrapped.data`, then the task's observation of it (its step
+plan's evaluation and `_observation`). It stands in for a TaskEnv API (a reset option taking a
+state) that tsrl.envs may offer later.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from ..envs.keys import OBS_KEYS
+from .demo_files import DemoFileError, Demonstrations
+
+#: The MuJoCo state a demonstration state holds (mujoco.mj_getState's spec).
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def get_state(base: Any) -> np.ndarray:
+    """MuJoCo's integration state of the task env `base` (env.unwrapped), float64 (mj_stateSize,)."""
+    state = np.empty(mujoco.mj_stateSize(base.model, STATE_SPEC))
+    mujoco.mj_getState(base.model, base.data, state, STATE_SPEC)
+    return state
+
+
+def restore_state(base: Any, state: np.ndarray) -> dict[str, np.ndarray]:
+    """Writes `state` (from get_state) into the task env `base` and returns its observation."""
+    mujoco.mj_setState(base.model, base.data, state, STATE_SPEC)
+    mujoco.mj_forward(base.model, base.data)
+    base.plan.evaluate(base.model, base.data)
+    return base._observation()
+
+
+def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
+    """(N, T + 1, n) states of the N demonstrations of `demos` (file `path`) replayed on `env` (a
+    fresh environment of the run, made with gym.make); each observation checked bit for bit."""
+    base = env.unwrapped
+    if base.task.randomize.active:
+        raise DemoFileError(path, "resets to demonstration states need a task without [randomize]")
+    t_steps = demos.episode_steps
+    states = np.empty((demos.n_episodes, t_steps + 1, mujoco.mj_stateSize(base.model, STATE_SPEC)))
+    for i in range(demos.n_episodes):
+        obs, _ = env.reset(seed=int(demos.seeds[i]))
+        for t in range(t_steps + 1):
+            if t > 0:
+                obs = env.step(demos.actions[i, t - 1])[0]
+            for key in OBS_KEYS:
+                if not np.array_equal(obs[key], getattr(demos, key)[i, t]):
+                    raise DemoFileError(
+                        path,
+                        f"replaying episode {i} (seed {int(demos.seeds[i])}) does not reproduce its "
+                        f"{key} at step {t}: recorded on another version of the task? Resets to "
+                        "demonstration states need a file this environment reproduces",
+                    )
+            states[i, t] = get_state(base)
+    return states
+
+
+class DemoResets(gym.Wrapper):
+    """Starts an episode from a demonstration state with probability `prob` (module docstring).
+
+    Args:
+        env: the training environment (gym.make's, unwrapped a tsrl TaskEnv).
+        states: (N, T + 1, n) from replay_states.
+        prob: probability of a demonstration reset, in (0, 1].
+        curriculum_steps: 0: the step is uniform in [0, T - 1]; N > 0: uniform in [T - w, T - 1] with
+            w = ceil(T * min(1, env steps / N)) (at least 1), the window growing with the env steps.
+        seed: seed of the wrapper's own generator.
+    """
+
+    def __init__(self, env: gym.Env, states: np.ndarray, prob: float, curriculum_steps: int, seed: int):
+        super().__init__(env)
+        self.states = states
+        self.prob = prob
+        self.curriculum_steps = curriculum_steps
+        self.rng = np.random.default_rng([seed, 0xDE30])  # its own stream: the env's draws are unchanged
+        self.env_steps = 0
+        self.last_reset: tuple[int, int] | None = None
+
+    def start_step(self) -> int:
+        """The demonstration step the next demonstration reset restores (drawn)."""
+        t_steps = self.states.shape[1] - 1
+        if self.curriculum_steps == 0:
+            return int(self.rng.integers(t_steps))
+        window = max(1, math.ceil(t_steps * min(1.0, self.env_steps / self.curriculum_steps)))
+        return int(self.rng.integers(t_steps - window, t_steps))
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.last_reset = None
+        if self.rng.random() >= self.prob:
+            return obs, info
+        episode = int(self.rng.integers(self.states.shape[0]))
+        step = self.start_step()
+        base = self.env.unwrapped
+        obs = restore_state(base, self.states[episode, step])
+        _, outcome = base.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
+        self.last_reset = (episode, step)
+        return obs, info | outcome | {"demo_reset": (episode, step)}
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        self.env_steps += 1
+        return self.env.step(action)

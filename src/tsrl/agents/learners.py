@@ -1,0 +1,108 @@
+"""Learner options that need their own networks: LayerNorm actor and critic MLPs (RLPD, Ball et al. 2023).
+
+stable-baselines3 2.9.2's actors and critics build their MLPs with `create_mlp` and no way to pass
+normalisation layers through policy_kwargs, so the policies here are the algorithms' own
+MultiInputPolicy with `make_actor` / `make_critic` extended: the networks they build are taken as they
+are and a LayerNorm (with its affine weights) inserted after each hidden Linear layer, before its
+activation. The Linear layers are the very modules SB3 created (same initialisation, same random
+draws); only the LayerNorms are new. The policy classes are module-level, so saved models load
+with them (stable-baselines3 stores the class and `policy_kwargs`, `layer_norm` among them).
+
+    layer_norm = "critic": every critic (and target critic) network; "both": the actor's too.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import sb3_contrib.tqc.policies as tqc_policies
+import stable_baselines3.sac.policies as sac_policies
+import stable_baselines3.td3.policies as td3_policies
+from stable_baselines3.common.policies import BasePolicy
+from torch import nn
+
+#: layer_norm values that normalise the critic / the actor (AgentConfig.layer_norm).
+NORMALISED_CRITIC = ("critic", "both")
+NORMALISED_ACTOR = ("both",)
+
+
+def with_layer_norm(mlp: nn.Sequential, n_hidden: int) -> nn.Sequential:
+    """`mlp` (create_mlp's layers) with nn.LayerNorm(width) after each of its first `n_hidden`
+    Linear layers (the hidden ones); the output layer and its squashing stay as they are."""
+    layers: list[nn.Module] = []
+    seen = 0
+    for layer in mlp:
+        layers.append(layer)
+        if isinstance(layer, nn.Linear) and seen < n_hidden:
+            layers.append(nn.LayerNorm(layer.out_features))
+            seen += 1
+    return nn.Sequential(*layers)
+
+
+def _normalise_critic(critic: nn.Module, n_hidden: int) -> None:
+    """Replaces each of the critic's q_networks (SB3's ContinuousCritic, sb3-contrib's TQC Critic)."""
+    q_networks: list[nn.Module] = critic.q_networks  # type: ignore[assignment]
+    for idx, q_net in enumerate(q_networks):
+        assert isinstance(q_net, nn.Sequential)
+        q_networks[idx] = with_layer_norm(q_net, n_hidden)
+        critic.add_module(f"qf{idx}", q_networks[idx])
+
+
+class _LayerNormMixin:
+    """make_actor / make_critic of the policy it precedes in the MRO, with LayerNorm added."""
+
+    net_arch: Any
+    actor_kwargs: dict[str, Any]
+    critic_kwargs: dict[str, Any]
+
+    def __init__(self, *args: Any, layer_norm: str = "critic", **kwargs: Any):
+        # Set before BasePolicy.__init__, which builds the networks (torch allows plain attributes).
+        object.__setattr__(self, "layer_norm", layer_norm)
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor: Any = None) -> Any:
+        actor = super().make_actor(features_extractor)  # type: ignore[misc]
+        if self.layer_norm in NORMALISED_ACTOR:  # type: ignore[attr-defined]
+            n_hidden = len(self.actor_kwargs["net_arch"])
+            if hasattr(actor, "mu") and isinstance(actor.mu, nn.Sequential):  # DDPG / TD3
+                actor.mu = with_layer_norm(actor.mu, n_hidden)
+            else:  # SAC / TQC: the hidden layers, then the mean and log-std heads
+                actor.latent_pi = with_layer_norm(actor.latent_pi, n_hidden)
+        return actor
+
+    def make_critic(self, features_extractor: Any = None) -> Any:
+        critic = super().make_critic(features_extractor)  # type: ignore[misc]
+        if self.layer_norm in NORMALISED_CRITIC:  # type: ignore[attr-defined]
+            _normalise_critic(critic, len(self.critic_kwargs["net_arch"]))
+        return critic
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data: dict[str, Any] = super()._get_constructor_parameters()  # type: ignore[misc]
+        data["layer_norm"] = self.layer_norm  # type: ignore[attr-defined]
+        return data
+
+
+class LayerNormTD3Policy(_LayerNormMixin, td3_policies.MultiInputPolicy):
+    """DDPG's and TD3's MultiInputPolicy with LayerNorm (module docstring)."""
+
+
+class LayerNormSACPolicy(_LayerNormMixin, sac_policies.MultiInputPolicy):
+    """SAC's MultiInputPolicy with LayerNorm (module docstring)."""
+
+
+class LayerNormTQCPolicy(_LayerNormMixin, tqc_policies.MultiInputPolicy):
+    """TQC's MultiInputPolicy with LayerNorm (module docstring)."""
+
+
+#: The LayerNorm policy of each algorithm (AgentConfig.algo).
+LAYER_NORM_POLICIES: dict[str, type[BasePolicy]] = {
+    "ddpg": LayerNormTD3Policy,
+    "td3": LayerNormTD3Policy,
+    "sac": LayerNormSACPolicy,
+    "tqc": LayerNormTQCPolicy,
+}
+
+
+def policy_for(algo: str, layer_norm: str) -> str | type[BasePolicy]:
+    """The policy argument of the algorithm: "MultiInputPolicy" (its own) without LayerNorm."""
+    return "MultiInputPolicy" if layer_norm == "none" else LAYER_NORM_POLICIES[algo]
