@@ -15,7 +15,15 @@ from tsrl.exceptions import InvalidConfig
 
 @pytest.mark.parametrize(
     "task",
-    ["Reach-v0", "PickPlace-v0", "PoseReach-v0", "ObstacleReach-v1", "Push-v0", "Reach-v1", "PickPlace-v1"],
+    [
+        "Reach-v0",
+        "PickPlace-v0",
+        "PoseReach-v0",
+        "ObstacleReach-v1",
+        "Push-v0",
+        "BaseReach-v0",
+        "BasePickPlace-v0",
+    ],
 )
 def test_the_two_arms_share_the_layout_of_each_built_in_task(task):
     ur5e, panda = (layout(gym.make(f"tsrl/{arm}{task}").unwrapped) for arm in ("UR5e", "Panda"))
@@ -58,8 +66,8 @@ def test_each_kind_of_mismatch_is_named():
     assert "control_dt 0.08 s there, 0.04 s" in _refusal(TaskEnv("UR5eReach-v0"), TaskEnv(slow))
 
 
-@pytest.mark.parametrize("task", ["Reach-v1", "PickPlace-v1"])
-def test_the_v1_tasks_of_the_two_arms_are_one_task_space_in_the_base_frame(task):
+@pytest.mark.parametrize("task", ["BaseReach-v0", "BasePickPlace-v0"])
+def test_the_base_tasks_of_the_two_arms_are_one_task_space_in_the_base_frame(task):
     ur5e, panda = (load_task(f"{arm}{task}") for arm in ("UR5e", "Panda"))
     assert ur5e.frame == panda.frame == "base"
     same = ("observation", "action", "goal", "success", "objects", "episode_steps", "control_dt")
