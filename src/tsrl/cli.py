@@ -87,6 +87,17 @@ class Train:
             return 128 + signal.SIGINT
         return 0
 
+    def with_learner(self, argv: Sequence[str]) -> Train:
+        """`tsrl train --learner fast ...`: the options parsed again over that preset's defaults, so the
+        options not given take the preset's values and the given ones win (AgentConfig.learner)."""
+        from .agents.config import AgentConfig
+
+        preset = TrainConfig(agent=AgentConfig(learner=self.config.agent.learner))
+        with _one_line_errors():
+            return tyro.cli(
+                Train, args=argv, prog="tsrl train", default=dataclasses.replace(self, config=preset)
+            )
+
     def with_run_config(self, argv: Sequence[str]) -> Train:
         """`tsrl train --resume RUN_DIR ...`: the options parsed again over the run's own config.
 
@@ -362,6 +373,8 @@ def parse(argv: Sequence[str] | None = None) -> Command:
         )
     if isinstance(command, Train) and command.resume is not None:
         command = command.with_run_config(argv[1:])
+    elif isinstance(command, Train) and command.config.agent.learner != "paper":
+        command = command.with_learner(argv[1:])
     return command
 
 

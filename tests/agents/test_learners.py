@@ -54,7 +54,8 @@ def _parameters_after_updates(cfg: TrainConfig, steps: int = 200) -> dict[str, t
 def test_paper_learner_resolves_to_todays_settings_and_the_same_parameters():
     a = AgentConfig()
     assert (a.learner, a.layer_norm, a.utd) == ("paper", "none", None)
-    assert (a.demos.batch_share, a.demos.reset_prob, a.demos.batch_share_end) == (0.125, 0.0, None)
+    assert (a.demos.batch_share, a.demos.reset_prob, a.demos.batch_share_end) == (0.125, None, None)
+    assert AgentConfig(demos=DemoConfig(path="d.npz")).demos.reset_prob == 0.0
     today = _parameters_after_updates(tiny())
     spelled_out = _parameters_after_updates(tiny(learner="paper", layer_norm="none", utd=None))
     assert today.keys() == spelled_out.keys()
@@ -72,7 +73,10 @@ def test_fast_preset_fills_unset_options_and_explicit_ones_win(reach_demos):
     )
     given = AgentConfig(learner="fast", utd=0.5, demos=DemoConfig(path=str(reach_demos), batch_share=0.25))
     assert (given.utd, given.demos.batch_share, given.layer_norm) == (0.5, 0.25, preset["layer_norm"])
-    assert AgentConfig(learner="fast").demos.reset_prob == 0.0  # no demonstrations: no resets
+    without = AgentConfig(learner="fast")
+    assert not without.demos.reset_prob  # no demonstrations: no resets
+    later = dataclasses.replace(without, demos=dataclasses.replace(without.demos, path=str(reach_demos)))
+    assert later.demos.reset_prob == preset["demos_reset_prob"]  # a file given later (experiments)
     cfg = TrainConfig(agent=fast)
     assert cfg.run_name.endswith("__demos__fast")
     again = AgentConfig(**{k: getattr(fast, k) for k in ("learner", "layer_norm", "utd")}, demos=fast.demos)
@@ -288,3 +292,16 @@ def test_bad_combinations_are_one_line(make, expected, reach_demos):
     with pytest.raises(InvalidConfig, match=expected) as err:
         make(str(reach_demos))
     assert "\n" not in str(err.value)
+
+
+def test_cli_learner_fast_takes_the_preset_and_given_options_win(reach_demos):
+    from tsrl.cli import parse
+
+    fast = parse(["train", "--learner", "fast", "--demos", str(reach_demos)]).config.agent
+    assert fast == AgentConfig(learner="fast", demos=DemoConfig(path=str(reach_demos)))
+    given = parse(
+        ["train", "--learner", "fast", "--layer-norm", "none", "--demos", str(reach_demos)]
+    ).config.agent
+    assert (given.layer_norm, given.utd) == ("none", LEARNER_PRESETS["fast"]["utd"])
+    assert given.demos.reset_prob == LEARNER_PRESETS["fast"]["demos_reset_prob"]
+    assert parse(["train"]).config.agent == AgentConfig()  # paper: today's options

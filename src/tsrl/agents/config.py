@@ -50,6 +50,10 @@ NATIVE = "native"
 TASK_ACTION = "task"
 #: An `env_id` ending so is a task file (docs/tasks.md), built by tsrl/Task-v0.
 TASK_FILE_SUFFIX = ".toml"
+#: `obs` and `action` of a registered environment where they are not given (the paper's); a task file
+#: keeps its own (TrainConfig.obs, TrainConfig.action).
+DEFAULT_OBS = "fs1"
+DEFAULT_ACTION = "taskspace"
 
 
 def tsrl_env_ids() -> list[str]:
@@ -120,7 +124,7 @@ class DemoConfig:
     reset_prob: Annotated[float | None, arg(name="demos-reset-prob")] = None
     """Probability that a training episode starts from a demonstration's state (a random episode and
     step of the file, restored exactly; Nair et al. 2018) instead of the task's reset. Default: the
-    learner's where demonstrations are on (paper: 0; fast: 0.5), else 0."""
+    learner's where demonstrations are on (paper: 0; fast: 0.5); without them None (no resets)."""
     reset_curriculum_steps: Annotated[int, arg(name="demos-reset-curriculum-steps")] = 0
     """0: the restored step is uniform over the demonstration; N > 0: a reverse curriculum, the
     restored step drawn from the last steps of the demonstration, a window that grows linearly from
@@ -181,7 +185,8 @@ class AgentConfig:
     """Preset of the learner options left unset (layer_norm, utd, demos batch share and reset
     probability): paper (today's agent, the paper's settings) or fast (LayerNorm critic, UTD 2,
     symmetric demonstration sampling and demonstration resets; docs/training.md). Options given
-    explicitly win."""
+    explicitly win. Resolved on construction: dataclasses.replace(config, learner=...) of a built
+    config keeps its values; build AgentConfig(learner=...) (the CLI and experiment files do)."""
     layer_norm: LayerNorm | None = None
     """LayerNorm after every hidden layer, before its ReLU (RLPD, Ball et al. 2023): none, critic,
     or both (critic and actor). Default: the learner's (paper: none)."""
@@ -275,8 +280,9 @@ class AgentConfig:
                 "(--demos) with batch_share and bc_weight > 0; accepted without: reset_prob 0, "
                 "reset_curriculum_steps 0"
             )
-        if demos.reset_prob is None:
-            demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"] if demos.active else 0.0)
+        if demos.reset_prob is None and demos.active:  # without them None stays (no resets), so that a
+            # file given later (dataclasses.replace, as experiments add theirs) gets the preset's value
+            demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"])
         object.__setattr__(self, "demos", demos)
 
 
@@ -288,12 +294,19 @@ class TrainConfig:
     """Registered environment id, or the path of a task file (TOML, docs/tasks.md) to train on."""
     # Help texts built from the registries, so that they list every preset and mode there is.
     obs: Annotated[
-        str, arg(help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.")
-    ] = "fs1"
+        str | None,
+        arg(
+            help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string (default: a "
+            f"task file's own observation; {DEFAULT_OBS} for a registered environment)."
+        ),
+    ] = None
     action: Annotated[
-        str,
-        arg(help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action)."),
-    ] = "taskspace"
+        str | None,
+        arg(
+            help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action; "
+            f"the default for a task file, {DEFAULT_ACTION} for a registered environment)."
+        ),
+    ] = None
     seed: int = 0
     """Seed of networks, exploration, replay sampling and training episodes."""
     total_timesteps: int = 20_000
@@ -321,13 +334,19 @@ class TrainConfig:
             if not isinstance(self.init_from, str) or not self.init_from:
                 raise InvalidConfig(f"init_from must be a run folder; got {self.init_from!r}")
             object.__setattr__(self, "init_from", str(Path(self.init_from).expanduser().resolve()))
+        own: tuple[str, str] = (DEFAULT_OBS, DEFAULT_ACTION)
         if self.is_task_file:
             from ..envs import load_task
 
             path = Path(self.env_id).expanduser().resolve()
-            load_task(path)  # a missing or bad file: one line naming it
+            task = load_task(path)  # a missing or bad file: one line naming it
             object.__setattr__(self, "env_id", str(path))
-        if self.is_tsrl_env:
+            mode = task.action if isinstance(task.action, str) and task.action in ACTION_MODES else None
+            own = (task.observation, mode or TASK_ACTION)
+        if self.is_tsrl_env:  # obs and action not given: the task file's own, else the defaults
+            for name, value in zip(("obs", "action"), own, strict=True):
+                if getattr(self, name) is None:
+                    object.__setattr__(self, name, value)
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")
             _choice("action", self.action, (*ACTION_MODES, TASK_ACTION))
@@ -362,7 +381,8 @@ class TrainConfig:
     @property
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of gym.make: obs and action (unless the task's own) for tsrl environments,
-        and for a task file the file and its episode length; none for other environments."""
+        and for a task file the file (a run's copy: its Task, tsrl.agents.task_record) and its episode
+        length; none for other environments."""
         if not self.is_tsrl_env:
             return {}
         kwargs: dict[str, Any] = {"obs": self.obs}
@@ -370,8 +390,14 @@ class TrainConfig:
             kwargs["action"] = self.action
         if self.is_task_file:
             from ..envs import load_task
+            from .task_record import recorded_task
 
-            kwargs |= {"task": self.env_id, "max_episode_steps": load_task(self.env_id).episode_steps}
+            recorded = recorded_task(self.env_id)  # a run's copy of its task: as the run recorded it
+            task = load_task(self.env_id) if recorded is None else recorded
+            kwargs |= {
+                "task": self.env_id if recorded is None else task,
+                "max_episode_steps": task.episode_steps,
+            }
         return kwargs
 
     @property
