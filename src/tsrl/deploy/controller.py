@@ -394,10 +394,8 @@ class Controller:
     def _ik_step(self, q: np.ndarray, a: np.ndarray, cycle: Cycle, found: list[str]) -> np.ndarray:
         """The joint positions (n,) the env's step would command for action a at q."""
         action_map = self.env.action_map
-        if self._ik is None:  # joint actions, as TaskEnv steps them: q + joint_step a within the range
-            joint_range = self.env.bound_robot.joint_range
-            step = action_map.spec.joint_step
-            return np.minimum(np.maximum(q + step * a[: self.n], joint_range[:, 0]), joint_range[:, 1])
+        if self._ik is None:  # joint actions, as TaskEnv steps them
+            return action_map.joint_targets(q, a, self.env.bound_robot.joint_range)
         value = self.env.plan.ik_value
         assert value is not None
         target = action_map.ik_target(a, value.y)

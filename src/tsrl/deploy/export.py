@@ -369,7 +369,6 @@ def _contract(
                 "frame": "world",
                 "unit": "m",
             }
-    ik_solver = getattr(env, "_ik", None)  # TaskEnv's solver: its options are what the env's step used
     goal_rows = describe_rows(Stack([*env.goal.achieved_maps, *env.goal.penalty_maps]), joint_units)
     return {
         "format": FORMAT,
@@ -449,9 +448,7 @@ def _contract(
             "joint_step_rad": None if action.spec.uses_ik else action.spec.joint_step,
         },
         "workspace": workspace,
-        "ik": None
-        if ik_solver is None
-        else {"map": ik_map.spec if ik_map else None, "options": dataclasses.asdict(ik_solver.options)},
+        "ik": None if ik_map is None else {"map": ik_map.spec, "options": dataclasses.asdict(env.ik_options)},
         "policy": {
             "file": POLICY,
             "algo": cfg.agent.algo,

@@ -195,6 +195,11 @@ class ActionMap:
                 np.minimum(np.maximum(t, bounds[0], out=t), bounds[1], out=t)
         return target
 
+    def joint_targets(self, q: np.ndarray, a: np.ndarray, joint_range: np.ndarray) -> np.ndarray:
+        """Joint actions' servo targets (n,): q + joint_step a (n,) within the joints' range (n, 2)."""
+        step = self.spec.joint_step
+        return np.minimum(np.maximum(q + step * a[: len(q)], joint_range[:, 0]), joint_range[:, 1])
+
     def check_holds(self, model: mujoco.MjModel, data: mujoco.MjData, joints: tuple[str, ...]) -> None:
         """Raises InvalidConfig unless the IK meets the held values from the state in `data` (kinematics
         done; home): catches conflicting held maps (e.g. two axes) and unreachable values."""

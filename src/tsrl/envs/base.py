@@ -155,8 +155,12 @@ class TaskEnv(gym.Env, EzPickle):
             else None
         )
         ik_map = self.action_map.ik_map
-        ik_options = IKOptions(max_iters=self.ik_iterations, restarts=0, posture=self.bound_robot.posture)
-        self._ik = DlsSolver(self.model, ik_map, self.robot.joints, ik_options) if ik_map else None
+        #: The IK's options: a single step per period, or a local solve of ik_iterations steps, with the
+        #: redundant arm's null-space posture.
+        self.ik_options = IKOptions(
+            max_iters=self.ik_iterations, restarts=0, posture=self.bound_robot.posture
+        )
+        self._ik = DlsSolver(self.model, ik_map, self.robot.joints, self.ik_options) if ik_map else None
         # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
@@ -336,9 +340,7 @@ class TaskEnv(gym.Env, EzPickle):
         """Servo targets (n,) for action `a`, and the IK residual (0 for joint actions)."""
         if self._ik is None:
             q = self._qpos[self.bound_robot.qpos]
-            joint_range = self.bound_robot.joint_range
-            step = self.action_map.spec.joint_step
-            return np.minimum(np.maximum(q + step * a[: len(q)], joint_range[:, 0]), joint_range[:, 1]), 0.0
+            return self.action_map.joint_targets(q, a, self.bound_robot.joint_range), 0.0
         initial = self.plan.ik_value
         assert initial is not None  # the plan evaluates the IK map whenever the action has one
         target = self.action_map.ik_target(a, initial.y)
