@@ -1,0 +1,138 @@
+"""The manipulation family's learning benchmark: DDPG + HER with 100 scripted demonstrations per task
+(the paper's agent and tsrl's Q-filtered BC loss, each task's own observation and action); prints, per
+task, env steps and training time to 50/90/95 % evaluation success per seed and whether every seed
+reached 95 % within the task's target budget.
+
+    python benchmarks/family.py                      # every task, 5 seeds, its target budget
+    python benchmarks/family.py --tasks PandaPush-v0 --seeds 0 1 --jobs 2
+    python benchmarks/learning.py family ...         # the same
+
+| task | target (env steps, every seed at 95 %) | best anchor known |
+| --- | ---: | --- |
+| push | 30,000 | Fetch push, DDPG + HER: 0.95 at ~700,000 without demonstrations |
+| gripper pick-and-place | 60,000 | Fetch pick-and-place + 100 demos: ~0.9 at ~400,000 |
+| stack | 150,000 | panda-gym stack, TQC + HER: mostly fails at 1,000,000 |
+| peg insertion (2 mm) | 150,000 | ManiSkill PegInsertionSide: solved from sparse reward by a reverse curriculum |
+
+Runs are ordinary run folders under --out-dir (default results/benchmarks/family/<task>/): a finished
+one is reused, an interrupted one resumed. The demonstrations are recorded once per task (seed 0, the
+task's scripted solver, successful episodes only) into --out-dir/demos/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from learning import THRESHOLDS, first_reaching, summarize
+
+from tsrl.agents import AgentConfig, TrainConfig, read_progress
+from tsrl.agents.config import TASK_ACTION, DemoConfig
+from tsrl.agents.run_folder import latest_checkpoint, read_state
+
+#: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
+TASKS: dict[str, tuple[int, int]] = {
+    "PandaPush-v0": (30_000, 2_500),
+    "PandaPickPlaceGripper-v0": (60_000, 2_500),
+    "PandaStack-v0": (150_000, 10_000),
+    "PandaPegInsert-v0": (150_000, 10_000),
+}
+EVAL_EPISODES = 100
+DEMO_EPISODES = 100
+
+
+def record(task: str, out_dir: Path) -> Path:
+    """The task's 100 successful scripted demonstrations in its own observation and action, recorded once."""
+    from tsrl.agents.demo_files import save_demos, summary_line
+    from tsrl.agents.demonstrators import record_demos
+    from tsrl.envs import load_task
+
+    path = out_dir / "demos" / f"{task}-scripted-{DEMO_EPISODES}.npz"
+    if not path.is_file():
+        demos = record_demos(f"tsrl/{task}", DEMO_EPISODES, obs=load_task(task).observation, seed=0)
+        print(summary_line(demos, save_demos(demos, path)), flush=True)
+    return path
+
+
+def configs(task: str, seeds: list[int], total: int, eval_freq: int, demos: Path) -> list[TrainConfig]:
+    """The task's runs: the paper's agent with the demonstrations, the task's own observation and action."""
+    from tsrl.envs import load_task
+
+    agent = AgentConfig(demos=DemoConfig(path=str(demos)))
+    return [
+        TrainConfig(
+            env_id=f"tsrl/{task}",
+            obs=load_task(task).observation,
+            action=TASK_ACTION,
+            seed=s,
+            agent=agent,
+            total_timesteps=total,
+            eval_freq=eval_freq,
+            eval_episodes=EVAL_EPISODES,
+        )
+        for s in seeds
+    ]
+
+
+def run_one(args: tuple[TrainConfig, Path]) -> Path:
+    """Trains (or resumes, or reuses) one run in <parent>/<run name>."""
+    cfg, parent = args
+    from tsrl.agents.training import resume, train
+
+    run_dir = parent / cfg.run_name
+    checkpoint = latest_checkpoint(run_dir)
+    if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
+        return run_dir
+    if (run_dir / "config.json").is_file():
+        return resume(run_dir, total_timesteps=cfg.total_timesteps, progress_bar=False)
+    return train(cfg, parent, progress_bar=False)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--tasks", nargs="+", choices=sorted(TASKS), default=list(TASKS))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    parser.add_argument(
+        "--total-timesteps", type=int, default=None, help="per run (default: the task's target)"
+    )
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="runs in parallel (timings: no more than free cores)"
+    )
+    parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/family"))
+    args = parser.parse_args(argv)
+    work = []
+    for task in args.tasks:
+        target, eval_freq = TASKS[task]
+        demos = record(task, args.out_dir)
+        total = args.total_timesteps or target
+        work += [(cfg, args.out_dir / task) for cfg in configs(task, args.seeds, total, eval_freq, demos)]
+    print(f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}", flush=True)
+    if args.jobs > 1:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            done = list(pool.map(run_one, work))
+    else:
+        done = [run_one(w) for w in work]
+    lines = [
+        "| task | target | env steps to 95 % per seed | every seed within the target |",
+        "| --- | ---: | --- | --- |",
+    ]
+    for task in args.tasks:
+        run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
+        summarize(f"tsrl/{task} with {DEMO_EPISODES} demonstrations", run_dirs, train_time=True)
+        target = TASKS[task][0]
+        steps = [first_reaching(read_progress(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
+        cells = ", ".join("not reached" if math.isnan(s) else f"{s:,.0f}" for s in steps)
+        met = all(not math.isnan(s) and s <= target for s in steps)
+        lines.append(f"| {task} | {target:,} | {cells} | {'yes' if met else 'no'} |")
+    print("\n".join(["", *lines]))
+
+
+if __name__ == "__main__":
+    main()
