@@ -274,7 +274,10 @@ class Demos:
     """record: a demonstrator's successful episodes into a .npz file (the built-in task's scripted
     solver, tsrl.envs.solvers.SOLVERS, or a trained run's policy with --policy)."""
     out: Path
-    """The .npz file to write."""
+    """The .npz file to write (a Minari dataset goes beside it: OUT with the suffix .minari)."""
+    format: Literal["npz", "minari", "both"] = "npz"
+    """npz: the .npz file; minari: a Minari dataset folder (Farama's offline-RL format; needs the minari
+    package), the same episodes; both: the two."""
     env: str = "tsrl/UR5ePickPlace-v0"
     """Environment id (ignored with --policy)."""
     obs: str = "fs1"
@@ -296,12 +299,21 @@ class Demos:
 
     def run(self) -> int:
         from .agents.demo_files import save_demos, summary_line
+        from .agents.demo_minari import import_minari, minari_path
         from .agents.demonstrators import record_demos
 
+        paths = {
+            "npz": [self.out],
+            "minari": [minari_path(self.out)],
+            "both": [self.out, minari_path(self.out)],
+        }
+        if self.format != "npz":
+            import_minari()  # missing: one line before the episodes run
         demos = record_demos(
             self.env, self.episodes, self.obs, self.action, self.policy, self.seed, self.keep_failed
         )
-        print(summary_line(demos, save_demos(demos, self.out)))
+        for path in paths[self.format]:
+            print(summary_line(demos, save_demos(demos, path)))
         return 0
 
 

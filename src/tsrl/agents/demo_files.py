@@ -4,7 +4,8 @@ format, writing and checked reading, and what a run folder records about the fil
 `save_demos` / `load_demos` write and read demonstrations as one `.npz` file (format below), checked on
 load: a missing, truncated or corrupt file, NaN/inf, or a file from another environment, observation
 spec or action mode is one `DemoFileError` that says what differs. `tsrl.agents.demonstrators` records
-them.
+them. The same demonstrations may be a Minari dataset folder instead (tsrl.agents.demo_minari): a path
+ending in .minari is written as one, a folder is read as one, with the same checks.
 
 ## File format (version 1)
 One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N episodes of T steps:
@@ -41,6 +42,8 @@ from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig, TsrlError
 from ..files import replacing
 from .config import TrainConfig
+from .demo_minari import SUFFIX as MINARI_SUFFIX
+from .demo_minari import MinariDemoError, is_minari, read_minari, write_minari
 
 FORMAT = "tsrl-demos"
 VERSION = 1
@@ -130,24 +133,37 @@ class Demonstrations:
 
 
 def save_demos(demos: Demonstrations, path: Path | str) -> Path:
-    """Writes `demos` to `path` (.npz; written whole, then renamed into place). Returns the path."""
+    """Writes `demos` to `path` (.npz, or a Minari dataset folder for a path ending in .minari; written
+    whole, then renamed into place). Returns the path."""
     path = Path(path)
-    if path.suffix != ".npz":
-        raise InvalidConfig(f"a demonstration file ends in .npz; got {path}")
-    path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: getattr(demos, name) for name in ARRAYS}
+    if path.suffix == MINARI_SUFFIX:
+        return write_minari(arrays, demos.meta, path)
+    if path.suffix != ".npz":
+        raise InvalidConfig(
+            f"a demonstration file ends in .npz (or {MINARI_SUFFIX}: a Minari dataset); got {path}"
+        )
+    path.parent.mkdir(parents=True, exist_ok=True)
     with replacing(path, suffix=".npz") as tmp:
         np.savez_compressed(tmp, meta=np.array(json.dumps(demos.meta)), **arrays)
     return path
 
 
 def load_demos(path: Path | str, expect: DemoSpec | None = None) -> Demonstrations:
-    """Reads and checks a demonstration file; with `expect`, it must match that environment spec.
+    """Reads and checks a demonstration file (or Minari dataset folder); with `expect`, it must match
+    that environment spec.
 
     Raises DemoFileError (missing, truncated or corrupt, another format, inconsistent shapes, NaN/inf,
-    actions outside [-1, 1], or a spec that differs from `expect`, naming the differences).
+    actions outside [-1, 1], or a spec that differs from `expect`, naming the differences; for a Minari
+    dataset also episodes that do not end by their time limit, demo_minari.read_minari).
     """
     path = Path(path)
+    if is_minari(path):
+        try:
+            arrays, meta = read_minari(path, {"format": FORMAT, "version": VERSION})
+        except MinariDemoError as err:
+            raise DemoFileError(path, str(err)) from None
+        return _checked(path, arrays, meta, expect)
     if not path.is_file():
         raise DemoFileError(path, "no such file")
     try:
@@ -165,6 +181,11 @@ def load_demos(path: Path | str, expect: DemoSpec | None = None) -> Demonstratio
         meta = json.loads(meta_text)
     except json.JSONDecodeError as err:
         raise DemoFileError(path, f"meta is not valid JSON: {err}") from None
+    return _checked(path, arrays, meta, expect)
+
+
+def _checked(path: Path, arrays: dict[str, np.ndarray], meta: Any, expect: DemoSpec | None) -> Demonstrations:
+    """The demonstrations of `arrays` and `meta` read from `path`, after the checks of load_demos."""
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise DemoFileError(path, f"not a {FORMAT} file (meta format {meta.get('format')!r})")
     if meta.get("version") != VERSION:
@@ -224,10 +245,16 @@ def _check_spec(path: Path, got: DemoSpec, expect: DemoSpec) -> None:
 
 
 def sha256(path: Path | str) -> str:
+    """The SHA-256 of a file, or of a folder (a Minari dataset): its files' relative paths and bytes."""
     h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for file in files:
+        if file != path:
+            h.update(file.relative_to(path).as_posix().encode() + b"\0")
+        with open(file, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
     return h.hexdigest()
 
 
