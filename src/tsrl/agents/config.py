@@ -112,7 +112,7 @@ class DemoConfig:
 
     path: Annotated[str | None, arg(name="demos", aliases=("--demos-path",))] = None
     """Demonstration file (.npz, written by `tsrl demos record`) or Minari dataset folder (`--format
-    minari`, or one recorded with Minari's DataCollector on a tsrl environment); None: no demonstrations."""
+    minari`, or one written by Minari's own tools on a tsrl environment); None: no demonstrations."""
     batch_share: Annotated[float | None, arg(name="demos-batch-share")] = None
     """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay, in
     [0, 1); 0: demonstrations off. Default: the learner's (paper: 0.125, Nair et al.'s 128 of 1024;

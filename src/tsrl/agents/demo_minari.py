@@ -23,9 +23,10 @@ local` find it. `read_minari` takes that root (if it holds one dataset), a datas
 
 The dataset's metadata holds the file's meta under `tsrl` (env id, observation spec, action mode,
 demonstrator, episodes attempted and kept) and, for a registered environment, its Gymnasium EnvSpec
-(`dataset.recover_environment()` remakes it once tsrl is installed). A dataset recorded elsewhere
-(Minari's DataCollector on a tsrl environment, `record_infos=True`) has no `tsrl` entry: its meta is
-read off the environment its EnvSpec makes.
+(`dataset.recover_environment()` remakes it once tsrl is installed). A dataset written by
+Minari's own tools on a tsrl environment (`create_dataset_from_buffers`; the DataCollector with
+`record_infos=True` builds the same episodes) has no `tsrl` entry: its meta is read off the
+environment its EnvSpec makes.
 """
 
 from __future__ import annotations
