@@ -37,7 +37,7 @@ from . import evaluations as ev
 from . import statistics as st
 from .config import EVAL_METRIC, EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
 from .curves import FINAL_EVALS, Curve, curves, row_key
-from .plots import plot_curves, plot_profile
+from .plots import describe_agent, plot_curves, plot_penalised, plot_profile
 from .results import find_runs, variants
 from .runner import ERROR_FILE
 from .statistics import THRESHOLDS
@@ -62,6 +62,7 @@ COMPARISONS_CSV = "comparisons.csv"
 SUMMARY_MD = "summary.md"
 CURVES_PNG = "learning_curves.png"
 PROFILE_PNG = "performance_profile.png"
+PENALISED_PNG = "penalised_curves.png"
 #: Thresholds of the AUC performance profile.
 PROFILE_TAUS = np.linspace(0.0, 1.0, 51)
 
@@ -289,12 +290,15 @@ def write_report(results_dir: Path | str) -> list[Path]:
         markdown_summary(results_dir, summary, compared, len(comparisons), failed, empty, eval_summary)
     )
     paths.append(results_dir / SUMMARY_MD)
-    paths.append(plot_curves(all_curves, results_dir / CURVES_PNG, name))
+    agent = describe_agent(info)
+    paths.append(plot_curves(all_curves, results_dir / CURVES_PNG, name, agent))
+    if _has_penalties(all_curves):
+        paths.append(plot_penalised(all_curves, results_dir / PENALISED_PNG, name, agent))
     labels = config_labels([c.key for c in all_curves])
     aucs = {label: c.seed_metrics()["auc"] for label, c in zip(labels, all_curves, strict=True)}
     if all(not np.isnan(v).any() for v in aucs.values()):
         profile = st.performance_profile(aucs, PROFILE_TAUS)
-        paths.append(plot_profile(profile, PROFILE_TAUS, all_curves, results_dir / PROFILE_PNG, name))
+        paths.append(plot_profile(profile, PROFILE_TAUS, all_curves, results_dir / PROFILE_PNG, name, agent))
     return paths
 
 
@@ -349,6 +353,7 @@ def markdown_summary(
     lines = [f"# {_experiment_name(results_dir)}", ""] + ([description, ""] if description else [])
     lines += [f"![learning curves]({CURVES_PNG})", ""]
     penalties = any(math.isfinite(r["final_penalised_iqm"]) for r in summary)
+    lines += [f"![penalised evaluation episodes]({PENALISED_PNG})", ""] * penalties
     header = ["configuration", "seeds", "eval episodes", "AUC, IQM", "final success, IQM"]
     header += ["final penalised episodes, IQM"] * penalties + ["at env steps"]
     header += [f"env steps to {round(t * 100)}%" for t in THRESHOLDS] + ["wall time [s]"]
@@ -454,6 +459,11 @@ def _eval_labels(table: dict[str, Any]) -> list[str]:
     if not perturb:
         return [table["name"]]
     return [f"{table['name']}@{v:g}" for v in perturb["values"]]
+
+
+def _has_penalties(all_curves: list[Curve]) -> bool:
+    """Whether any run recorded penalised evaluation episodes (a task with penalties)."""
+    return any(c.penalised is not None and np.isfinite(c.penalised).any() for c in all_curves)
 
 
 def _interval(row: dict[str, Any], stat: str) -> str:
