@@ -308,8 +308,8 @@ class PushSolver(Solver):
 
 
 class GripperPickPlaceSolver(Solver):
-    """Gripper pick-and-place: open above the object (goal part `part`), descend around it, close,
-    lift (at most `lift` m per period), carry it `above` m over its goal, align to within `align` m,
+    """Gripper pick-and-place: open above the object (goal part `part`), descend around it (at most
+    `descend` m per period), close, lift (at most `lift` m per period), carry it `above` m over its goal, align to within `align` m,
     lower it onto the goal (at most `descend` m per period); with `release`, open there and rise.
 
     Reads the TCP's position from the environment (the observation need not carry it). `on`: the goal
@@ -367,10 +367,11 @@ class GripperPickPlaceSolver(Solver):
             target = obj + self.grasp + [0.0, 0.0, self.clearance]
             if np.linalg.norm((tcp - target)[:2]) < 0.01 and abs(tcp[2] - target[2]) < 0.02:
                 self.phase = "down"
-        if self.phase == "down":
+        if self.phase == "down":  # at most `descend` per period, correcting the hand's sideways drift
             target = obj + self.grasp
             if np.linalg.norm(tcp - target) < 0.008:
                 self.phase, self.count = "close", 0
+            target = np.array([*target[:2], max(target[2], tcp[2] - self.descend)])
         if self.phase == "close":
             target, width = obj + self.grasp, -1.0
             self.count += 1
