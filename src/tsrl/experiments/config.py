@@ -214,12 +214,15 @@ class ExperimentConfig:
         arms, evals = self.arms(), self.eval_arms()
         for i, c in enumerate(self.comparisons):
             accepted = evals if c.metric == EVAL_METRIC else arms
+            kind = (
+                f"evaluation-only arm (metric {EVAL_METRIC}: [[evaluate]] labels)"
+                if accepted is evals
+                else "arm"
+            )
             for arm in (c.a, c.b):
                 if arm not in accepted:
-                    kind = "evaluation-only arm ([[evaluate]])" if c.metric == EVAL_METRIC else "trained arm"
                     raise InvalidConfig(
-                        f"[comparisons[{i}]] metric {c.metric} compares a {kind}; unknown {arm!r}; "
-                        f"accepted: {', '.join(accepted) or 'none'}"
+                        f"[comparisons[{i}]] unknown {kind} {arm!r}; accepted: {', '.join(accepted) or 'none'}"
                     )
             if c.a == c.b:
                 raise InvalidConfig(f"[comparisons[{i}]] compares arm {c.a!r} with itself")
