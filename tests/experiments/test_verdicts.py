@@ -71,3 +71,16 @@ def test_mann_whitney_is_exact_without_ties_and_says_which():
         scipy.stats.mannwhitneyu(x, tied, alternative="greater", method="asymptotic").pvalue
     )
     assert st.mann_whitney_method(np.ones(3), np.ones(4)) == "none: every score equal"
+
+
+def test_interaction_is_the_change_of_the_effect_between_conditions():
+    # Condition 1: a - b = 0.6 - 0.2 = 0.4; condition 2: 0.9 - 0.8 = 0.1 -> interaction -0.3.
+    a1, b1 = np.full(4, 0.6), np.full(4, 0.2)
+    a2, b2 = np.full(4, 0.9), np.full(4, 0.8)
+    est = st.interaction(a1, b1, a2, b2, resamples=200)
+    assert est.point[0] == pytest.approx(-0.3) and est.low[0] == pytest.approx(-0.3)
+    assert est.sd[0] == pytest.approx(0, abs=1e-12)
+    # Spread in one cell widens the interval around the same point (IQM of 8 seeds: the middle 4).
+    spread = np.array([0.5, 0.55, 0.6, 0.6, 0.6, 0.6, 0.65, 0.7])
+    est = st.interaction(spread, np.full(8, 0.2), a2, b2, resamples=500)
+    assert est.point[0] == pytest.approx(-0.3) and est.low[0] < -0.3 < est.high[0]

@@ -269,3 +269,13 @@ def bound_flags(low: float, high: float) -> str:
     the bound caps it."""
     flags = ["floor"] * bool(low <= BOUND_MARGIN) + ["ceiling"] * bool(high >= 1 - BOUND_MARGIN)
     return ", ".join(flags)
+
+
+def interaction(
+    a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray, resamples: int = RESAMPLES
+) -> Estimate:
+    """The interaction of a 2 x 2 design from per-seed scores of its four cells: how much the effect
+    IQM(a) - IQM(b) changes from condition 1 to condition 2, [IQM(a2) - IQM(b2)] - [IQM(a1) - IQM(b1)],
+    with its 95% interval (each cell's seeds resampled on their own)."""
+    cells = [np.reshape(v, (-1, 1)).astype(float) for v in (a1, b1, a2, b2)]
+    return bootstrap(lambda w, x, y, z: (iqm(y) - iqm(z)) - (iqm(w) - iqm(x)), *cells, resamples=resamples)
