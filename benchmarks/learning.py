@@ -230,13 +230,21 @@ def record_benchmark_demos(out_dir: Path) -> Path:
     return path
 
 
-def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 2000) -> None:
-    """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread: gradient steps per second of
-    `model.train` on a buffer of 2,000 random-action transitions (batch 256), then env steps per second
-    of `model.learn` with learning (40 gradient steps per 2 episodes). Plain stable-baselines3 DDPG +
-    its HerReplayBuffer vs tsrl's (feature HER) vs tsrl's with 100 demonstrations (BC + Q-filter), and
-    sbx's (JAX) DDPG with tsrl's feature HER buffer where sbx is importable (`pip install sbx-rl`; not
-    a tsrl dependency). Each model is timed after one untimed `train(updates)` (sbx compiles then)."""
+def speed(
+    seeds: list[int], out_dir: Path, updates: int = 200, fill: int = 1000, env_steps: int = 500
+) -> None:
+    """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread, per learner option: gradient steps
+    per second of `model.train` (batch 256, `updates` steps, after one untimed call) on a buffer of
+    `fill` random-action transitions, next to the matrix-multiply floor of the same update, then env
+    steps per second of `model.learn` with learning (the option's gradient steps per two episodes).
+
+    The floor: every nn.Linear of the model is hooked during one gradient step, which records each
+    matrix product it runs (batch rows x in -> out, and whether gradients flow); the floor is the time
+    of those products alone, run with torch.mm on this machine `updates` times back to back just
+    before the timed steps (forward, and for a step with gradients the two backward products dY W
+    and dY^T X), as updates per second. Plain stable-baselines3
+    DDPG + its HerReplayBuffer is the first row; sbx's (JAX) DDPG with tsrl's feature HER buffer is
+    added where sbx is importable (`pip install sbx-rl`; not a tsrl dependency, no floor)."""
     import time
 
     import torch as th
@@ -246,8 +254,8 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
     from tsrl.agents import make_agent, make_vec_env
 
     th.set_num_threads(1)
-    demos = record_benchmark_demos(out_dir)
-    a = AgentConfig(learning_starts=env_steps)
+    demos = str(record_benchmark_demos(out_dir))
+    a = AgentConfig(learning_starts=fill)
 
     def sb3_plain(
         cfg: TrainConfig, algo: Any = DDPG, policy: Any = "MultiInputPolicy", her: Any = HerReplayBuffer
@@ -272,13 +280,25 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
             device="cpu",
         )
 
-    variants = {
+    def agent(**kw: Any) -> AgentConfig:
+        demo_kw = kw.pop("demos", None)
+        return AgentConfig(
+            learning_starts=fill,
+            demos=DemoConfig(path=demos, **demo_kw) if demo_kw is not None else DemoConfig(),
+            **kw,
+        )
+
+    variants: dict[str, tuple[Any, AgentConfig]] = {
         "SB3 DDPG + HerReplayBuffer": (sb3_plain, a),
-        "tsrl DDPG + feature HER": (None, a),
-        "tsrl DDPG + feature HER + demos": (
-            None,
-            AgentConfig(learning_starts=env_steps, demos=DemoConfig(path=str(demos))),
-        ),
+        "tsrl DDPG + feature HER (paper)": (None, a),
+        "+ demonstrations (share 0.125, BC)": (None, agent(demos={})),
+        "+ demonstrations, share 0.5": (None, agent(demos={"batch_share": 0.5})),
+        "+ demonstration resets 0.5": (None, agent(demos={"reset_prob": 0.5})),
+        "LayerNorm critic": (None, agent(layer_norm="critic")),
+        "LayerNorm critic and actor": (None, agent(layer_norm="both")),
+        "TQC + feature HER": (None, agent(algo="tqc")),
+        "SAC + feature HER": (None, agent(algo="sac")),
+        "fast preset (UTD 2)": (None, agent(learner="fast", demos={})),
     }
     try:
         import sbx
@@ -293,24 +313,70 @@ def speed(seeds: list[int], out_dir: Path, updates: int = 400, env_steps: int = 
     except ImportError:
         print("sbx not installed: its row is left out")
     print(
-        f"\nlearner speed, {PICK} fs1, seeds {seeds}: {updates} gradient steps timed; {env_steps} env steps with learning"
+        f"\nlearner speed, {PICK} fs1, seeds {seeds}: {updates} gradient steps timed (batch {a.batch_size}) on "
+        f"{fill} stored transitions; then {env_steps} env steps with learning"
     )
-    print(f"{'variant':<34} {'updates/s':>10} {'env steps/s':>12}")
-    for label, (build, agent) in variants.items():
+    print(f"{'variant':<38} {'updates/s':>10} {'floor/s':>8} {'of floor':>8} {'env steps/s':>12}")
+    for label, (build, agent_cfg) in variants.items():
         rates = []
         for seed in seeds:
-            cfg = TrainConfig(env_id=PICK, obs="fs1", seed=seed, total_timesteps=3 * env_steps, agent=agent)
+            cfg = TrainConfig(
+                env_id=PICK, obs="fs1", seed=seed, total_timesteps=fill + 2 * env_steps, agent=agent_cfg
+            )
             model = build(cfg) if build is not None else make_agent(cfg, make_vec_env(cfg))
-            model.learn(env_steps)  # random actions fill the buffer; no update yet
+            model.learn(fill)  # random actions fill the buffer; no update yet
             model.train(gradient_steps=updates, batch_size=a.batch_size)  # untimed: sbx compiles here
+            floor = (
+                matmul_floor(model, a.batch_size, updates) if hasattr(model.policy, "modules") else math.nan
+            )
             t0 = time.perf_counter()
             model.train(gradient_steps=updates, batch_size=a.batch_size)
             t1 = time.perf_counter()
             model.learn(env_steps, reset_num_timesteps=False)
             t2 = time.perf_counter()
-            rates.append((updates / (t1 - t0), env_steps / (t2 - t1)))
-        u, e = np.mean(rates, axis=0)
-        print(f"{label:<34} {u:>10.1f} {e:>12.1f}", flush=True)
+            rates.append((updates / (t1 - t0), floor, env_steps / (t2 - t1)))
+        u, f, e = np.mean(rates, axis=0)
+        print(f"{label:<38} {u:>10.1f} {_f(f):>8} {_pct(u / f):>8} {e:>12.1f}", flush=True)
+
+
+def matmul_floor(model: Any, batch_size: int, repeats: int) -> float:
+    """Updates per second that the matrix products of one gradient step of `model` allow alone (see
+    speed): the products are recorded by forward hooks on its nn.Linear layers, then run in the same
+    order `repeats` times back to back (as the gradient steps are), on random operands."""
+    import time
+
+    import torch as th
+
+    products: list[tuple[int, int, int, bool]] = []
+
+    def record(module: th.nn.Linear, inputs: tuple[th.Tensor, ...], output: th.Tensor) -> None:
+        rows = inputs[0].reshape(-1, module.in_features).shape[0]
+        products.append((rows, module.in_features, module.out_features, th.is_grad_enabled()))
+
+    linear = [m for m in model.policy.modules() if isinstance(m, th.nn.Linear)]
+    hooks = [m.register_forward_hook(record) for m in linear]
+    try:
+        model.train(gradient_steps=1, batch_size=batch_size)
+    finally:
+        for hook in hooks:
+            hook.remove()
+    operands: dict[tuple[int, int, int], tuple[th.Tensor, th.Tensor]] = {}  # (n x k) @ (k x m)
+    sequence = []
+    for rows, d_in, d_out, grad in products:
+        shapes = [(rows, d_in, d_out)] + ([(rows, d_out, d_in), (d_out, rows, d_in)] if grad else [])
+        for n, k, m in shapes:  # backward: dX = dY W and dW = dY^T X
+            if (n, k, m) not in operands:
+                operands[(n, k, m)] = (th.randn(n, k), th.randn(k, m))
+            sequence.append(operands[(n, k, m)])
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        for x, w in sequence:
+            th.mm(x, w)
+    return repeats / (time.perf_counter() - t0)
+
+
+def _pct(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{x:.0%}"
 
 
 def _i(x: float) -> str:
@@ -352,7 +418,7 @@ def main() -> None:
     args = parser.parse_args()
 
     if args.suite == "speed":
-        speed(args.seeds or [0, 1], args.out_dir)
+        speed(args.seeds or [0], args.out_dir)
         return
     seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in ("demos", "learner") else [0, 1, 2])
     total, eval_freq, eval_episodes = (

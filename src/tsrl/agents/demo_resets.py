@@ -29,6 +29,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from ..envs.base import TaskEnv
 from ..envs.keys import OBS_KEYS
 from .demo_files import DemoFileError, Demonstrations
 
@@ -36,14 +37,14 @@ from .demo_files import DemoFileError, Demonstrations
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def get_state(base: Any) -> np.ndarray:
+def get_state(base: TaskEnv) -> np.ndarray:
     """MuJoCo's integration state of the task env `base` (env.unwrapped), float64 (mj_stateSize,)."""
     state = np.empty(mujoco.mj_stateSize(base.model, STATE_SPEC))
     mujoco.mj_getState(base.model, base.data, state, STATE_SPEC)
     return state
 
 
-def restore_state(base: Any, state: np.ndarray) -> dict[str, np.ndarray]:
+def restore_state(base: TaskEnv, state: np.ndarray) -> dict[str, np.ndarray]:
     """Writes `state` (from get_state) into the task env `base` and returns its observation."""
     mujoco.mj_setState(base.model, base.data, state, STATE_SPEC)
     mujoco.mj_forward(base.model, base.data)
@@ -55,6 +56,7 @@ def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
     """(N, T + 1, n) states of the N demonstrations of `demos` (file `path`) replayed on `env` (a
     fresh environment of the run, made with gym.make); each observation checked bit for bit."""
     base = env.unwrapped
+    assert isinstance(base, TaskEnv)
     if base.task.randomize.active:
         raise DemoFileError(path, "resets to demonstration states need a task without [randomize]")
     t_steps = demos.episode_steps
@@ -115,6 +117,7 @@ class DemoResets(gym.Wrapper):
         episode = int(self.rng.integers(self.states.shape[0]))
         step = self.start_step()
         base = self.env.unwrapped
+        assert isinstance(base, TaskEnv)
         obs = restore_state(base, self.states[episode, step])
         _, outcome = base.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
         self.last_reset = (episode, step)

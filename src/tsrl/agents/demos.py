@@ -225,8 +225,9 @@ class BCLoss:
 def first_q(critic: th.nn.Module, obs: dict[str, th.Tensor], actions: th.Tensor) -> th.Tensor:
     """(n, 1) Q values of the critic's first head: q1_forward of stable-baselines3's critics; the
     mean of the first critic's quantiles for TQC's (whose forward gives (n, critics, quantiles))."""
-    if hasattr(critic, "q1_forward"):
-        return critic.q1_forward(obs, actions)
+    q1_forward = getattr(critic, "q1_forward", None)
+    if q1_forward is not None:
+        return q1_forward(obs, actions)
     return critic(obs, actions)[:, 0].mean(dim=1, keepdim=True)
 
 

@@ -110,11 +110,11 @@ def buffer_capacity(cfg: TrainConfig, episode_steps: int) -> int:
 def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None) -> OffPolicyAlgorithm:
     """DDPG/TD3/SAC + HER on `env` with the settings of `cfg.agent` (see AgentConfig for each default)."""
     a: AgentConfig = cfg.agent
-    n_actions = int(np.prod(env.action_space.shape))
+    n_actions = int(np.prod(env.action_space.shape or ()))  # a Box: its shape
     episode_steps = int(env.get_attr("spec")[0].max_episode_steps or 0)
     if episode_steps <= 0:
         raise InvalidConfig(f"{cfg.env_id} has no time limit; HER needs finite episodes")
-    kwargs = {
+    kwargs: dict[str, Any] = {
         "learning_rate": a.learning_rate,
         "buffer_size": buffer_capacity(cfg, episode_steps),
         "learning_starts": a.learning_starts,
