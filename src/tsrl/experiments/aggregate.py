@@ -25,7 +25,7 @@ import json
 import math
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -198,8 +198,10 @@ def compare(
             for arm in (c.a, c.b)
         )
     ]
-    out, effects = [], []
+    out: list[dict[str, Any]] = []
+    effects: list[st.Estimate] = []
     for c in present:
+        direction = cast(st.Direction, c.direction)  # Comparison checks it is one of DIRECTIONS
         x, y = metrics[c.a][c.metric], metrics[c.b][c.metric]
         bounds = {arm: st.iqm_interval(v) for arm, v in ((c.a, x), (c.b, y))}  # every metric is a rate
         flags = [f"{arm}: {f}" for arm, e in bounds.items() if (f := st.bound_flags(e.low[0], e.high[0]))]
@@ -221,9 +223,9 @@ def compare(
                 "poi": float(poi.point[0]),
                 "poi_ci_low": float(poi.low[0]),
                 "poi_ci_high": float(poi.high[0]),
-                "p": st.mann_whitney_p(x, y, c.direction),
+                "p": st.mann_whitney_p(x, y, direction),
                 "p_method": st.mann_whitney_method(x, y),
-                "mde": st.minimum_detectable_effect(float(effect.sd[0]), len(comparisons), c.direction),
+                "mde": st.minimum_detectable_effect(float(effect.sd[0]), len(comparisons), direction),
                 "min_effect": math.nan if c.min_effect is None else c.min_effect,
                 "flags": "; ".join(flags),
             }
@@ -232,7 +234,9 @@ def compare(
     family = st.holm([r["p"] for r in out] + [1.0] * (len(comparisons) - len(out)))
     for row, c, effect, p_holm in zip(out, present, effects, family, strict=False):
         row["p_holm"] = float(p_holm)
-        row["verdict"] = st.verdict(c.a, c.b, effect, row["p_holm"], row["mde"], c.direction, c.min_effect)
+        row["verdict"] = st.verdict(
+            c.a, c.b, effect, row["p_holm"], row["mde"], cast(st.Direction, c.direction), c.min_effect
+        )
     return out
 
 
