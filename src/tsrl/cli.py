@@ -15,7 +15,7 @@ import dataclasses
 import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, Protocol
 
@@ -24,7 +24,7 @@ import tyro._errors
 from tyro.conf import Positional, arg
 
 from .agents.config import TrainConfig, check_env_id
-from .agents.run_folder import CONFIG_FILE, check_not_locked, load_config
+from .agents.run_folder import CONFIG_FILE, check_not_locked, load_config, run_config
 from .assets import SCENES
 from .deploy.cli import DEPLOY_COMMANDS
 from .exceptions import InvalidConfig, TsrlError
@@ -45,10 +45,13 @@ class Command(Protocol):
 class Train:
     """Train DDPG/TD3/SAC + HER into a self-describing, resumable run folder."""
 
-    config: Annotated[TrainConfig, arg(name="")] = field(default_factory=TrainConfig)
+    config: Annotated[TrainConfig, arg(name="")]
+    """The run (no default instance: obs and action not given stay empty, so that TrainConfig gives a
+    task file its own)."""
     out_dir: Path = Path("results")
     """Parent of the run folder <out-dir>/<env>__<obs>__<action>__<algo>__s<seed>, which gets
-    config.json, progress.csv, tb/ (TensorBoard), checkpoints/ and learning_curve.png."""
+    config.json, task/ (copies of the task's files), progress.csv, tb/ (TensorBoard), checkpoints/ and
+    learning_curve.png."""
     resume: Annotated[Path | None, arg(metavar="RUN_DIR")] = None
     """Continue this run from its newest usable checkpoint (a damaged one is skipped with a warning); only
     --total-timesteps may be given with it."""
@@ -92,7 +95,8 @@ class Train:
         options not given take the preset's values and the given ones win (AgentConfig.learner)."""
         from .agents.config import AgentConfig
 
-        preset = TrainConfig(agent=AgentConfig(learner=self.config.agent.learner))
+        # the env given: obs and action not given are its own (a task file's; TrainConfig.obs)
+        preset = TrainConfig(env_id=self.config.env_id, agent=AgentConfig(learner=self.config.agent.learner))
         with _one_line_errors():
             return tyro.cli(
                 Train, args=argv, prog="tsrl train", default=dataclasses.replace(self, config=preset)
@@ -104,7 +108,7 @@ class Train:
         An option whose value differs from the run's, besides --total-timesteps, is an error.
         """
         assert self.resume is not None
-        run_cfg = load_config(self.resume)
+        run_cfg = run_config(self.resume, notify=False)  # on its recorded task (agents.task_record)
         with _one_line_errors():
             again = tyro.cli(
                 Train, args=argv, prog="tsrl train", default=dataclasses.replace(self, config=run_cfg)
@@ -160,7 +164,7 @@ class Evaluate:
         perturbation = parse_perturb(self.perturb) if self.perturb is not None else None
         target = target_env(self.env, self.task)
         if perturbation is None or (self.run_dir / CONFIG_FILE).is_file():
-            cfg = load_config(self.run_dir)
+            cfg = run_config(self.run_dir, notify=False)  # on its recorded task (agents.task_record)
             base = eval_task(cfg, target)
             for t in [base] if perturbation is None else sweep(base, perturbation):
                 check_layout(cfg, t)

@@ -50,8 +50,8 @@ NATIVE = "native"
 TASK_ACTION = "task"
 #: An `env_id` ending so is a task file (docs/tasks.md), built by tsrl/Task-v0.
 TASK_FILE_SUFFIX = ".toml"
-#: `obs` and `action` of a registered environment where they are not given (the paper's); a task file
-#: keeps its own (TrainConfig.obs, TrainConfig.action).
+#: `obs` and `action` of a registered environment where they are not given (left empty; the paper's);
+#: a task file keeps its own (TrainConfig.obs, TrainConfig.action).
 DEFAULT_OBS = "fs1"
 DEFAULT_ACTION = "taskspace"
 
@@ -294,20 +294,21 @@ class TrainConfig:
     env_id: Annotated[str, arg(aliases=("--env", "--task"))] = "tsrl/UR5eReach-v0"
     """Registered environment id, or the path of a task file (TOML, docs/tasks.md) to train on."""
     # Help texts built from the registries, so that they list every preset and mode there is.
+    # Left empty (not given), obs and action are the task file's own, else the defaults (__post_init__).
     obs: Annotated[
-        str | None,
+        str,
         arg(
-            help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string (default: a "
-            f"task file's own observation; {DEFAULT_OBS} for a registered environment)."
+            help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.",
+            help_behavior_hint=f"(default: a task file's own; {DEFAULT_OBS} for a registered environment)",
         ),
-    ] = None
+    ] = ""
     action: Annotated[
-        str | None,
+        str,
         arg(
-            help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action; "
-            f"the default for a task file, {DEFAULT_ACTION} for a registered environment)."
+            help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action).",
+            help_behavior_hint=f"(default: a task file's own; {DEFAULT_ACTION} for a registered environment)",
         ),
-    ] = None
+    ] = ""
     seed: int = 0
     """Seed of networks, exploration, replay sampling and training episodes."""
     total_timesteps: int = 20_000
@@ -346,7 +347,7 @@ class TrainConfig:
             own = (task.observation, mode or TASK_ACTION)
         if self.is_tsrl_env:  # obs and action not given: the task file's own, else the defaults
             for name, value in zip(("obs", "action"), own, strict=True):
-                if getattr(self, name) is None:
+                if getattr(self, name) == "":
                     object.__setattr__(self, name, value)
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")

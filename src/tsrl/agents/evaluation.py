@@ -23,7 +23,7 @@ from ..envs.registration import TASK_ENV_ID
 from .checkpoint import Checkpoint, load_policy, usable_checkpoint
 from .config import TrainConfig
 from .factory import ALGO_CLASSES, make_env
-from .run_folder import NotARunFolder, load_config
+from .run_folder import NotARunFolder, run_config
 from .transfer import EvalTask, check_layout, eval_task, target_env
 
 #: Evaluation seeds are drawn from a stream of their own, apart from training's episode seeds.
@@ -120,9 +120,10 @@ class RunEvaluation:
 def load_run_policy(run_dir: Path) -> tuple[TrainConfig, BaseAlgorithm, VecNormalize | None, Checkpoint]:
     """Config, model and normaliser of a run's newest usable checkpoint, and that checkpoint.
 
-    A damaged checkpoint is skipped with a warning (tsrl.agents.checkpoint.usable_checkpoint).
+    A damaged checkpoint is skipped with a warning (tsrl.agents.checkpoint.usable_checkpoint). The
+    config is the run's on its recorded task, with a notice per changed file (tsrl.agents.task_record).
     """
-    cfg = load_config(run_dir)
+    cfg = run_config(run_dir)
     checkpoint = usable_checkpoint(run_dir, cfg.agent.normalize, for_training=False)
     if checkpoint is None:
         raise NotARunFolder(run_dir, "no checkpoint yet")
@@ -141,7 +142,7 @@ def evaluate_run(
     episodes (seeds from `seed`, by default the run's training-evaluation seeds), on its own task, on
     `env_id` (a registered id) or on `task` (a task file) of the same layout: a layout that differs is
     one line of InvalidConfig naming the first differing row or part, raised before the policy loads."""
-    target = eval_task(load_config(run_dir), target_env(env_id, task))
+    target = eval_task(run_config(run_dir, notify=False), target_env(env_id, task))
     return evaluate_run_on(run_dir, [target], episodes, seed)[0]
 
 
@@ -151,7 +152,7 @@ def evaluate_run_on(
     """evaluate_run on each of `tasks` (e.g. tsrl.agents.transfer.sweep's), in order: every layout
     checked first, the policy loaded once, every task on the same episode seeds (paired). `fresh`:
     seeds no training evaluation used (fresh_eval_seeds), else the training evaluation's (eval_seeds)."""
-    cfg = load_config(run_dir)
+    cfg = run_config(run_dir, notify=False)
     for t in tasks:
         check_layout(cfg, t)
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)

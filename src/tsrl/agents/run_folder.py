@@ -3,6 +3,7 @@
 ```
 <out_dir>/<env>__<obs>__<action>__<algo>__s<seed>/
     config.json        the exact, validated TrainConfig
+    task/              copies of the files its task reads and their sha256s (tsrl.agents.task_record)
     progress.csv       one row per evaluation: env_steps, episodes, wall_time_s (training + evaluation,
                        summed over resumed sessions), eval_time_s (its evaluation part),
                        eval_success_rate, eval_final_distance_m, train_success_rate, critic_loss, actor_loss,
@@ -22,9 +23,11 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import fcntl
 import json
 import os
+import sys
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Self
@@ -32,7 +35,8 @@ from typing import Any, Self
 from ..configs import load_table
 from ..exceptions import TsrlError, is_number
 from ..files import replacing, write_atomic
-from .config import TrainConfig
+from . import task_record
+from .config import TASK_FILE_SUFFIX, TrainConfig
 
 CONFIG_FILE = "config.json"
 PROGRESS = "progress.csv"
@@ -111,7 +115,7 @@ class RunState:
 
 
 def load_config(run_dir: Path | str) -> TrainConfig:
-    """The TrainConfig of a run folder (validated)."""
+    """The TrainConfig of a run folder (validated; a task file that is gone through the run's copy)."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise NotARunFolder(run_dir, "no such folder")
@@ -122,7 +126,50 @@ def load_config(run_dir: Path | str) -> TrainConfig:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
-    return load_table(TrainConfig, data, source=path)
+    env_id = data.get("env_id") if isinstance(data, dict) else None
+    gone = isinstance(env_id, str) and env_id.endswith(TASK_FILE_SUFFIX) and not Path(env_id).is_file()
+    copy = task_record.task_copy(run_dir)[0] if gone else None
+    if copy is None:
+        return load_table(TrainConfig, data, source=path)
+    # Its task file is gone: the config is checked on the run's copy of it (with_task_copy builds the
+    # run's environments from the copy) and keeps the file's path, the run's identity.
+    cfg = load_table(TrainConfig, data | {"env_id": str(copy)}, source=path)
+    object.__setattr__(cfg, "env_id", env_id)
+    return cfg
+
+
+def write_task_record(run_dir: Path, cfg: TrainConfig) -> None:
+    """Copies of the files the run's task reads and their sha256s, in run_dir/task/ (tsrl.agents.task_record);
+    nothing for environments outside tsrl."""
+    if cfg.is_task_file:
+        task: str | None = cfg.env_id
+    elif cfg.is_tsrl_env:
+        import gymnasium as gym
+
+        task = gym.spec(cfg.env_id).kwargs.get("task")
+    else:
+        task = None
+    if isinstance(task, str):
+        task_record.write_record(run_dir / task_record.TASK_DIR, task_record.task_files(task))
+
+
+def with_task_copy(run_dir: Path, cfg: TrainConfig, notify: bool = True) -> TrainConfig:
+    """`cfg`, the run's config.json, as the run trains and is evaluated: a task file's run on its copy
+    in run_dir/task/ (tsrl.agents.task_record). `notify`: one line on stderr per recorded file that
+    changed since the run started, or saying that the run has no record (it then reads its files as
+    they are now)."""
+    if not cfg.is_tsrl_env:
+        return cfg
+    copy, notices = task_record.task_copy(run_dir)
+    if notify:
+        for line in notices:
+            print(f"tsrl: notice: {line}", file=sys.stderr)
+    return cfg if copy is None or not cfg.is_task_file else dataclasses.replace(cfg, env_id=str(copy))
+
+
+def run_config(run_dir: Path | str, notify: bool = True) -> TrainConfig:
+    """`load_config` on the run's recorded task (`with_task_copy`)."""
+    return with_task_copy(Path(run_dir), load_config(run_dir), notify)
 
 
 def read_progress(run_dir: Path | str) -> list[dict[str, float]]:

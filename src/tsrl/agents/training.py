@@ -48,7 +48,9 @@ from .run_folder import (
     load_config,
     read_progress,
     truncate_progress,
+    with_task_copy,
     write_json_atomic,
+    write_task_record,
 )
 
 
@@ -83,6 +85,7 @@ def train(cfg: TrainConfig, out_dir: Path | str, progress_bar: bool = True) -> P
         demos = demo_record(cfg)  # a bad demonstration file fails here, before the run folder exists
         run_dir.mkdir(parents=True, exist_ok=True)
         with RunLock(run_dir):
+            write_task_record(run_dir, cfg)  # copies of the task's files, before config.json
             write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
             if demos is not None:
                 write_json_atomic(run_dir / DEMOS_RECORD, demos)
@@ -113,12 +116,13 @@ def resume(run_dir: Path | str, total_timesteps: int | None = None, progress_bar
             for newer in checkpoint_dirs(run_dir):
                 if newer.name > checkpoint.path.name:
                     shutil.rmtree(newer)
+        run = with_task_copy(run_dir, cfg)  # on its recorded task (agents.task_record)
         if total_timesteps is not None and total_timesteps != cfg.total_timesteps:
-            cfg = dataclasses.replace(cfg, total_timesteps=total_timesteps)
-            write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict())
+            run = dataclasses.replace(run, total_timesteps=total_timesteps)
+            write_json_atomic(run_dir / CONFIG_FILE, cfg.to_dict() | {"total_timesteps": total_timesteps})
         if checkpoint is None:  # restarts from scratch: the demonstrations must be the recorded ones
             check_demo_record(run_dir, cfg)
-        session = _Session(cfg, run_dir, progress_bar)
+        session = _Session(run, run_dir, progress_bar)
         try:
             session.run(checkpoint=checkpoint)
         finally:

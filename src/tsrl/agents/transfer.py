@@ -94,7 +94,11 @@ def base_task(env_id: str) -> Task:
     import gymnasium as gym
 
     if env_id.endswith(TASK_FILE_SUFFIX):
-        return load_task(Path(env_id).expanduser().resolve())
+        from .task_record import recorded_task
+
+        path = Path(env_id).expanduser().resolve()
+        recorded = recorded_task(path)  # a run's copy of its task: as the run recorded it
+        return load_task(path) if recorded is None else recorded
     check_env_id(env_id)
     return load_task(gym.spec(env_id).kwargs["task"])
 

@@ -20,7 +20,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from ..agents.config import TrainConfig
-from ..agents.run_folder import CONFIG_FILE, load_config
+from ..agents.run_folder import CONFIG_FILE, load_config, with_task_copy
 from ..agents.transfer import EvalTask, Perturbation, check_layout, eval_task, sweep
 from ..files import write_atomic
 from . import statistics as st
@@ -146,9 +146,10 @@ def profile(
     arms = config_labels(keys) if len(run_dirs) > 1 else [cfgs[0].run_name]
     plans: list[tuple[Path, TrainConfig, str, list[EvalTask]]] = []
     for run_dir, cfg, arm in zip(run_dirs, cfgs, arms, strict=True):
-        tasks = sweep(eval_task(cfg, env_id), perturbation)
+        recorded = with_task_copy(run_dir, cfg, notify=False)  # on its recorded task (agents.task_record)
+        tasks = sweep(eval_task(recorded, env_id), perturbation)
         for t in tasks:
-            check_layout(cfg, t)
+            check_layout(recorded, t)
         plans.append((run_dir, cfg, arm, tasks))
     rows = []
     for run_dir, _, arm, tasks in plans:
