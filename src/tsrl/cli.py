@@ -200,6 +200,9 @@ class Render:
     """Seed of the episode seeds (default: the run's)."""
     size: Annotated[tuple[int, int], arg(metavar="W H")] = (480, 480)
     """Frame width and height in pixels."""
+    camera: Annotated[str | None, arg(metavar="NAME")] = None
+    """A camera of the task's model (MJCF <camera name=...>); default: a camera aimed at the task's
+    workspace (the goal box and the TCP at home)."""
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
@@ -211,7 +214,7 @@ class Render:
         load_config(self.run_dir)  # a clear error before torch loads
         from .agents.evaluation import render_run
 
-        print(f"wrote {render_run(self.run_dir, self.out, self.episodes, self.seed, self.size)}")
+        print(f"wrote {render_run(self.run_dir, self.out, self.episodes, self.seed, self.size, self.camera)}")
         return 0
 
 
@@ -248,13 +251,16 @@ class Show:
     """Number of random poses besides home."""
     seed: int = 0
     """Seed of the random poses."""
+    camera: Annotated[str | None, arg(metavar="NAME")] = None
+    """A camera of the scene's model (MJCF <camera name=...>); default: a camera framing the bodies its
+    joints move and its mocap bodies at home."""
 
     def __post_init__(self) -> None:
         if self.poses < 0:
             raise InvalidConfig(f"--poses must be >= 0; got {self.poses}")
 
     def run(self) -> int:
-        for path in render_poses(self.out_dir, self.scene, self.poses, self.seed):
+        for path in render_poses(self.out_dir, self.scene, self.poses, self.seed, self.camera):
             print(f"wrote {path}")
         return 0
 

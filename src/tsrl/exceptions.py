@@ -31,7 +31,9 @@ class UnknownName(TsrlError, KeyError):
     """A joint, site, body or geom name the model does not have."""
 
     def __init__(self, kind: str, name: str, known: Iterable[str]):
-        super().__init__(f"unknown {kind} {name!r}; the model's {kind}s: {', '.join(sorted(known))}")
+        super().__init__(
+            f"unknown {kind} {name!r}; the model's {kind}s: {', '.join(sorted(known)) or 'none'}"
+        )
 
     def __str__(self) -> str:
         return str(self.args[0])

@@ -14,9 +14,13 @@ from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name
 POSE_SPREAD = 0.6
 
 
-def render_poses(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0) -> list[Path]:
+def render_poses(
+    out_dir: Path, scene: str = "reach", n_random: int = 3, seed: int = 0, camera: str | None = None
+) -> list[Path]:
     """Renders `scene` at its home keyframe (else qpos0) and at `n_random` seeded random poses near it
-    into `out_dir` as <scene or model file stem>_home.png, ..._random_<i>.png; returns the PNG paths."""
+    into `out_dir` as <scene or model file stem>_home.png, ..._random_<i>.png, seen from `camera` (a
+    camera of the model; None: tsrl.rendering.default_camera); returns the PNG paths. An unknown camera
+    raises UnknownName listing the model's cameras, before anything is written."""
     from PIL import Image
 
     from .rendering import SceneRenderer
@@ -31,12 +35,13 @@ def render_poses(out_dir: Path, scene: str = "reach", n_random: int = 3, seed: i
         (f"random_{i}", np.clip(home + rng.uniform(-POSE_SPREAD, POSE_SPREAD, len(home)), *limits.T))
         for i in range(n_random)
     ]
-    out_dir.mkdir(parents=True, exist_ok=True)
     stem = scene if scene in SCENES else Path(scene).stem  # a model file's name, not its path
     paths = []
-    with SceneRenderer(model) as renderer:
+    with SceneRenderer(model, camera=camera) as renderer:
+        out_dir.mkdir(parents=True, exist_ok=True)
         for name, q in poses:
             forward_kinematics(model, data, q)
+            mujoco.mj_camlight(model, data)  # the model's cameras and lights where the pose puts them
             path = out_dir / f"{stem}_{name}.png"
             Image.fromarray(renderer.render(data)).save(path)
             paths.append(path)

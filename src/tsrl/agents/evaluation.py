@@ -20,6 +20,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from ..envs.registration import TASK_ENV_ID
+from ..exceptions import InvalidConfig
 from .checkpoint import Checkpoint, load_policy, usable_checkpoint
 from .config import TrainConfig
 from .factory import ALGO_CLASSES, make_env
@@ -176,13 +177,21 @@ def evaluate_policy(
 
 
 def render_run(
-    run_dir: Path, out: Path, episodes: int = 2, seed: int | None = None, size: tuple[int, int] = (480, 480)
+    run_dir: Path,
+    out: Path,
+    episodes: int = 2,
+    seed: int | None = None,
+    size: tuple[int, int] = (480, 480),
+    camera: str | None = None,
 ) -> Path:
-    """Writes a video of the run's newest usable policy (deterministic), rendered off-screen; mp4, else
-    GIF. Returns its path."""
+    """Writes a video of the run's newest usable policy (deterministic), rendered off-screen from
+    `camera` (a camera of the task's model; None: the task's workspace camera); mp4, else GIF.
+    Returns its path. An unknown camera raises UnknownName listing the model's cameras."""
     cfg, model, normalizer, _ = load_run_policy(run_dir)
-    kwargs = {"width": size[0], "height": size[1]} if cfg.is_tsrl_env else {}
-    env = make_env(cfg, render_mode="rgb_array", **kwargs)
+    if camera is not None and not cfg.is_tsrl_env:
+        raise InvalidConfig(f"--camera names a camera of a tsrl task's model; {cfg.env_id} is not one")
+    kwargs: dict[str, Any] = {"width": size[0], "height": size[1], "camera": camera}
+    env = make_env(cfg, render_mode="rgb_array", **(kwargs if cfg.is_tsrl_env else {}))
     frames = []
     try:
         for episode_seed in eval_seeds(cfg.seed if seed is None else seed, episodes):
