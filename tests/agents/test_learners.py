@@ -55,7 +55,7 @@ def test_paper_learner_resolves_to_todays_settings_and_the_same_parameters():
     a = AgentConfig()
     assert (a.learner, a.layer_norm, a.utd) == ("paper", "none", None)
     assert (a.demos.batch_share, a.demos.reset_prob, a.demos.batch_share_end) == (0.125, None, None)
-    assert AgentConfig(demos=DemoConfig(path="d.npz")).demos.reset_prob == 0.0
+    assert AgentConfig(demos=DemoConfig(path="d.npz")).demos.reset_prob is None  # no resets
     today = _parameters_after_updates(tiny())
     spelled_out = _parameters_after_updates(tiny(learner="paper", layer_norm="none", utd=None))
     assert today.keys() == spelled_out.keys()
@@ -282,9 +282,10 @@ def test_bc_loss_works_with_tqc(reach_demos):
         (lambda p: AgentConfig(demos=DemoConfig(reset_prob=0.5)), "without demonstrations"),
         (lambda p: AgentConfig(demos=DemoConfig(reset_curriculum_steps=100)), "without demonstrations"),
         (
-            lambda p: DemoConfig(path=p, reset_prob=0.0, reset_curriculum_steps=100),
+            lambda p: AgentConfig(demos=DemoConfig(path=p, reset_prob=0.0, reset_curriculum_steps=100)),
             "a reset curriculum needs",
         ),
+        (lambda p: AgentConfig(demos=DemoConfig(path=p, reset_curriculum_steps=100)), "with reset_prob None"),
         (lambda p: DemoConfig(path=p, reset_prob=1.5), r"reset_prob must be in \[0, 1\]"),
     ],
 )

@@ -125,7 +125,7 @@ class DemoConfig:
     reset_prob: Annotated[float | None, arg(name="demos-reset-prob")] = None
     """Probability that a training episode starts from a demonstration's state (a random episode and
     step of the file, restored exactly; Nair et al. 2018) instead of the task's reset. Default: the
-    learner's where demonstrations are on (paper: 0; fast: 0.5); without them None (no resets)."""
+    learner's where demonstrations are on (paper: None, no resets; fast: 0.5); without them None."""
     reset_curriculum_steps: Annotated[int, arg(name="demos-reset-curriculum-steps")] = 0
     """0: the restored step is uniform over the demonstration; N > 0: a reverse curriculum, the
     restored step drawn from the last steps of the demonstration, a window that grows linearly from
@@ -159,11 +159,6 @@ class DemoConfig:
         if self.reset_prob is not None and (not is_number(self.reset_prob) or not 0 <= self.reset_prob <= 1):
             raise InvalidConfig(f"demos reset_prob must be in [0, 1]; got {self.reset_prob!r}")
         check_int("demos reset_curriculum_steps", self.reset_curriculum_steps, 0)
-        if self.reset_curriculum_steps > 0 and self.reset_prob == 0:
-            raise InvalidConfig(
-                f"demos reset_curriculum_steps {self.reset_curriculum_steps} with reset_prob 0: a reset "
-                "curriculum needs demonstration resets; accepted: reset_prob > 0, or reset_curriculum_steps 0"
-            )
 
     @property
     def active(self) -> bool:
@@ -281,9 +276,16 @@ class AgentConfig:
                 "(--demos) with batch_share and bc_weight > 0; accepted without: reset_prob 0, "
                 "reset_curriculum_steps 0"
             )
-        if demos.reset_prob is None and demos.active:  # without them None stays (no resets), so that a
-            # file given later (dataclasses.replace, as experiments add theirs) gets the preset's value
+        if demos.reset_prob is None and demos.active and preset["demos_reset_prob"]:
+            # None stays None (no resets) otherwise: a file given later (dataclasses.replace, as
+            # experiments add theirs, or with --resume) finds the same config as the paper's runs have
             demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"])
+        if demos.reset_curriculum_steps > 0 and not demos.reset_prob:
+            raise InvalidConfig(
+                f"demos reset_curriculum_steps {demos.reset_curriculum_steps} with reset_prob "
+                f"{demos.reset_prob}: a reset curriculum needs demonstration resets; accepted: "
+                "reset_prob > 0, or reset_curriculum_steps 0"
+            )
         object.__setattr__(self, "demos", demos)
 
 
