@@ -306,3 +306,23 @@ def test_cli_learner_fast_takes_the_preset_and_given_options_win(reach_demos):
     assert (given.layer_norm, given.utd) == ("none", LEARNER_PRESETS["fast"]["utd"])
     assert given.demos.reset_prob == LEARNER_PRESETS["fast"]["demos_reset_prob"]
     assert parse(["train"]).config.agent == AgentConfig()  # paper: today's options
+
+
+def test_an_experiment_file_takes_learner_fast_and_its_recorded_demonstrations(tmp_path):
+    from tsrl.experiments.config import load_experiment
+
+    source = Path(__file__).resolve().parents[2] / "experiments" / "pick-place-box-tcp.toml"
+    text = source.read_text()
+    assert "[agent]\n" not in text and "[agent.her]" in text and "[demos]" in text
+    (tmp_path / "fast.toml").write_text(
+        text.replace("[agent.her]", '[agent]\nlearner = "fast"\n\n[agent.her]', 1)
+    )
+    run = load_experiment(tmp_path / "fast.toml", check_envs=False).runs(tmp_path)[0]
+    preset = LEARNER_PRESETS["fast"]
+    assert (run.agent.layer_norm, run.agent.utd, run.agent.demos.batch_share) == (
+        preset["layer_norm"],
+        preset["utd"],
+        preset["demos_batch_share"],
+    )
+    assert run.agent.demos.reset_prob == preset["demos_reset_prob"]  # the experiment's demonstrations
+    assert run.run_name.endswith("__demos__fast")
