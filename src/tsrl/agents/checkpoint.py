@@ -126,8 +126,8 @@ def usable_checkpoint(run_dir: Path, normalized: bool, for_training: bool) -> Ch
         except DamagedCheckpoint as err:
             damaged.append(err)
             continue
-        for err in damaged:
-            print(f"tsrl: warning: damaged checkpoint skipped, {err}; using {path.name}", file=sys.stderr)
+        for skipped in damaged:
+            print(f"tsrl: warning: damaged checkpoint skipped, {skipped}; using {path.name}", file=sys.stderr)
         return checkpoint
     if damaged:
         raise NoUsableCheckpoint(run_dir, damaged)
@@ -146,7 +146,9 @@ def load_checkpoint(
     model = algo_class.load(checkpoint.path / MODEL, env=env, device="cpu")
     buffer = checkpoint.replay_buffer
     if isinstance(buffer, HerReplayBuffer):
-        buffer.set_env(model.get_env())
+        loaded_env = model.get_env()
+        assert loaded_env is not None  # loaded with env=
+        buffer.set_env(loaded_env)
     buffer.device = model.device
     model.replay_buffer = buffer
     if normalizer is not None and checkpoint.normalizer is not None:
@@ -164,7 +166,7 @@ def load_policy(
     """Model (without env or replay buffer) and normaliser of a verified checkpoint, for evaluation and
     rendering."""
     # No env and a token replay buffer: HER's buffer needs an env, and evaluation needs no buffer.
-    no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
+    no_buffer: dict[str, Any] = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
     model = algo_class.load(checkpoint.path / MODEL, device="cpu", custom_objects=no_buffer)
     normalizer = checkpoint.normalizer
     if normalizer is not None:

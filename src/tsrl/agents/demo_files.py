@@ -83,13 +83,15 @@ class DemoSpec:
         base = env.unwrapped
         if not hasattr(base, "obs_spec") or not hasattr(base, "relabel"):
             raise InvalidConfig(f"{env.spec.id if env.spec else env}: demonstrations need a tsrl environment")
+        tsrl_env: Any = base  # a TaskEnv (checked above): its action mode
         space = base.observation_space
+        assert isinstance(space, gym.spaces.Dict) and base.action_space.shape is not None  # a tsrl env's
         return cls(
             env_id=env.spec.id if env.spec is not None else type(base).__name__,
             obs_spec=base.obs_spec,
-            action=base.action_mode,
-            obs_dim=int(space["observation"].shape[0]),
-            goal_dim=int(space["desired_goal"].shape[0]),
+            action=tsrl_env.action_mode,
+            obs_dim=int(np.prod(space["observation"].shape or ())),
+            goal_dim=int(np.prod(space["desired_goal"].shape or ())),
             action_dim=int(base.action_space.shape[0]),
         )
 

@@ -235,5 +235,7 @@ def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandl
     """Registers BCLoss on the actor's optimizer (after creating or loading a model with
     demonstrations on, `cfg.active`)."""
     assert cfg.active
-    optimizer = model.actor.optimizer  # type: ignore[attr-defined]
+    policy: Any = model.policy  # DDPG/TD3/SAC's policies have an actor with its optimizer
+    optimizer = policy.actor.optimizer
+    assert isinstance(optimizer, th.optim.Optimizer)
     return optimizer.register_step_pre_hook(BCLoss(model, cfg.bc_weight, cfg.q_filter))

@@ -82,7 +82,7 @@ class Evaluator:
         penalised = np.zeros(len(self.envs), dtype=bool)
         reports_penalty = False
         while active:
-            batch = {key: np.stack([observations[i][key] for i in active]) for key in observations[0]}
+            batch: Any = {key: np.stack([observations[i][key] for i in active]) for key in observations[0]}
             if normalizer is not None:
                 batch = normalizer.normalize_obs(batch)
             actions, _ = model.predict(batch, deterministic=True)
@@ -199,7 +199,7 @@ def render_run(
             frames.append(env.render())
             done = False
             while not done:
-                batch = {k: v[None] for k, v in obs.items()}
+                batch: Any = {k: v[None] for k, v in obs.items()}
                 if normalizer is not None:
                     batch = normalizer.normalize_obs(batch)
                 action, _ = model.predict(batch, deterministic=True)
@@ -219,7 +219,8 @@ def write_video(frames: list[Any], out: Path, fps: int) -> Path:
         try:
             import imageio.v2 as imageio
 
-            with imageio.get_writer(out, fps=fps, codec="libx264", macro_block_size=1, quality=7) as writer:
+            writer: Any = imageio.get_writer(out, fps=fps, codec="libx264", macro_block_size=1, quality=7)
+            with writer:
                 for frame in frames:
                     writer.append_data(frame)
             return out

@@ -34,6 +34,7 @@ from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
+from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
 from .run_folder import (
@@ -154,8 +155,10 @@ class _Session:
             model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)
             state = checkpoint.state
             episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
-            model.replay_buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
-            model.buffer_size = model.replay_buffer.buffer_size
+            buffer = model.replay_buffer
+            assert isinstance(buffer, FeatureHerReplayBuffer)  # tsrl's runs train on HER goal envs
+            buffer.grow(buffer_capacity(cfg, episode_steps))  # a larger budget on resume
+            model.buffer_size = buffer.buffer_size
             if cfg.agent.demos.active:  # the demonstrations came back in the replay buffer
                 attach_bc_loss(model, cfg.agent.demos)
             # The env restarts with a new episode, seeded from (seed, episodes done).
@@ -226,6 +229,12 @@ class _SafePointCallback(BaseCallback):
             self.writer.writeheader()
             self.progress_file.flush()
 
+    @property
+    def _model(self) -> OffPolicyAlgorithm:
+        """The algorithm being trained (BaseCallback types it as any BaseAlgorithm)."""
+        assert isinstance(self.model, OffPolicyAlgorithm)
+        return self.model
+
     def wall_time(self) -> float:
         return self.wall_base + time.monotonic() - self.t0
 
@@ -268,12 +277,12 @@ class _SafePointCallback(BaseCallback):
         self.pbar.set_postfix(
             episodes=self.model._episode_num,
             eval_success=f"{self.last_success:.2f}",
-            train_success=f"{_train_success(self.model):.2f}",
+            train_success=f"{_train_success(self._model):.2f}",
             refresh=False,
         )
 
     def _safe_point(self, final: bool) -> None:
-        model: OffPolicyAlgorithm = self.model
+        model = self._model
         step = model.num_timesteps
         stop = self.session.stop_signal
         if (step >= self.next_eval or final) and step != self.last_eval_step and stop is None:
