@@ -370,7 +370,10 @@ def test_gripper_width_bad_actuators_are_one_line(reach_model):
         SpecError, match=r"gripperWidth\(suction\): actuator 'suction' has no joint or fixed-tendon"
     ):
         parse_spec("gripperWidth(suction)", reach_model)
-    with pytest.raises(UnknownName, match="unknown actuator 'gripper'; the model's actuators: elbow"):
+    with pytest.raises(
+        UnknownName,
+        match="unknown actuator 'gripper' in spec 'gripperWidth\\(gripper\\)'; the model's actuators: elbow",
+    ):
         parse_spec("gripperWidth(gripper)", reach_model)
 
 
