@@ -303,7 +303,11 @@ def test_a_run_config_json_round_trips_and_one_from_before_the_newer_keys_loads_
 @pytest.mark.parametrize(
     ("path", "value", "message"),
     [
-        (("agent", "lr"), 0.1, "unknown key 'lr' in [agent]; accepted: algo, net_arch, policy_inputs"),
+        (
+            ("agent", "lr"),
+            0.1,
+            "unknown key 'lr' in [agent]; accepted: algo, learner, layer_norm, utd, net_arch",
+        ),
         (("seed",), "0", "seed must be an integer; got '0'"),
         (("total_timesteps",), True, "total_timesteps must be an integer; got True"),
         (("agent", "learning_rate"), True, "agent.learning_rate must be a number; got True"),
@@ -349,7 +353,7 @@ b = "baseline"
     ("old", "new", "message"),
     [
         ("seeds = [0, 1]", "seed = [0, 1]", "unknown key 'seed'; accepted: description, env, obs, action, algo"),
-        ("learning_starts = 100", "lr = 0.1", "unknown key 'lr' in [agent]; accepted: algo, net_arch"),
+        ("learning_starts = 100", "lr = 0.1", "unknown key 'lr' in [agent]; accepted: algo, learner, layer_norm, utd, net_arch"),
         ('b = "baseline"', 'b = "baseline"\nalpha = 0.1', "unknown key 'alpha' in [comparisons[0]]"),
         ('b = "baseline"', "", "missing key 'b' in [comparisons[0]]"),
         ("[agent]", "[demos]\nseed = 1\n[agent]", "missing key 'episodes' in [demos]"),
