@@ -34,7 +34,8 @@ ALGOS: tuple[str, ...] = typing.get_args(Algo)
 LEARNERS: tuple[str, ...] = typing.get_args(Learner)
 LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
-#: agent (the paper's settings); fast: chosen by `benchmarks/learning.py learner` (docs/training.md).
+#: agent (the paper's settings); fast: the issue-27 candidate as screened by `benchmarks/learning.py
+#: learner` (3 seeds, no full ablation; docs/training.md).
 #: demos_reset_prob applies only where demonstrations are on.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     "paper": {"layer_norm": "none", "utd": None, "demos_batch_share": 0.125, "demos_reset_prob": 0.0},
