@@ -14,10 +14,8 @@ with probability `prob` it restores a demonstration state (a uniform episode and
 reverse curriculum a step among the demonstration's last ones) and returns that state's observation.
 Its draws come from its own generator, seeded from the run's seed.
 
-`restore_state` is the one place that writes a state into the environment: MuJoCo's public
-`mj_setState` / `mj_forward` on `env.unwrapped.data`, then the task's observation of it (its step
-plan's evaluation and `_observation`). It stands in for a TaskEnv API (a reset option taking a
-state) that tsrl.envs may offer later.
+`restore_state` writes a state into the environment through `TaskEnv.restore_state` (MuJoCo's
+`mj_setState` / `mj_forward`, then the task's observation of it).
 """
 
 from __future__ import annotations
@@ -29,12 +27,13 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from ..envs.base import STATE_SPEC as TASK_STATE_SPEC
 from ..envs.base import TaskEnv
 from ..envs.keys import OBS_KEYS
 from .demo_files import DemoFileError, Demonstrations
 
 #: The MuJoCo state a demonstration state holds (mujoco.mj_getState's spec).
-STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+STATE_SPEC = TASK_STATE_SPEC
 
 
 def get_state(base: TaskEnv) -> np.ndarray:
@@ -46,10 +45,7 @@ def get_state(base: TaskEnv) -> np.ndarray:
 
 def restore_state(base: TaskEnv, state: np.ndarray) -> dict[str, np.ndarray]:
     """Writes `state` (from get_state) into the task env `base` and returns its observation."""
-    mujoco.mj_setState(base.model, base.data, state, STATE_SPEC)
-    mujoco.mj_forward(base.model, base.data)
-    base.plan.evaluate(base.model, base.data)
-    return base._observation()
+    return base.restore_state(state)
 
 
 def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:

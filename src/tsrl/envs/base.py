@@ -33,6 +33,9 @@ from .randomization import Randomizer
 from .scenes import load_scene
 from .tasks import Task, load_task
 
+#: What `TaskEnv.restore_state` takes: MuJoCo's full integration state (mj_getState's spec).
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
 _BADQACC, _BADQVEL, _BADQPOS = (
     int(w)
@@ -270,6 +273,15 @@ class TaskEnv(gym.Env, EzPickle):
         `new_goal` (g,) or (B, g); its penalty columns are replaced by their desired value 0.
         """
         return self.goal.relabel(self.plan.obs_map, obs, new_goal)
+
+    def restore_state(self, state: np.ndarray) -> dict[str, np.ndarray]:
+        """Writes a full physics state (mujoco.mj_getState with mjSTATE_INTEGRATION: time, qpos, qvel,
+        act, warm start, ctrl, mocap poses, ...) into the simulation and returns its observation, e.g.
+        a demonstration's state to start an episode from (Nair et al. 2018's resets)."""
+        mujoco.mj_setState(self.model, self.data, np.asarray(state, dtype=np.float64), STATE_SPEC)
+        mujoco.mj_forward(self.model, self.data)
+        self.plan.evaluate(self.model, self.data)
+        return self._observation()
 
     def move_target(self, goal: ArrayLike) -> dict[str, np.ndarray]:
         """Moves the goal markers to the goal `goal` (g,) without stepping physics; returns the new observation."""
