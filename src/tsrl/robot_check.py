@@ -25,7 +25,7 @@ from .exceptions import InvalidConfig
 from .ik import DlsSolver, IKOptions
 from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 from .robot_model import PreparedArm, RobotNotice, load_robot_model, robot_label
-from .robots import HOME_KEY, Robot, load_robot
+from .robots import HOME_KEY, Robot, load_robot, reset_to_key
 from .settling import settle
 from .taskmaps import Position, resolve_frame
 
@@ -196,10 +196,7 @@ def _home_key(model: mujoco.MjModel, robot: Robot) -> int | None:
 def _at_home(
     model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, home: np.ndarray, key: int | None
 ) -> None:
-    if key is None:
-        mujoco.mj_resetData(model, data)
-    else:
-        mujoco.mj_resetDataKeyframe(model, data, key)
+    reset_to_key(model, data, key)
     data.qpos[arm_qpos_indices(model, robot.joints)] = home
     mujoco.mj_forward(model, data)
 

@@ -228,10 +228,15 @@ class BoundRobot:
 
     def reset_to_home(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """The home keyframe (the model's default state where the robot names none), at rest."""
-        if self.home_key is None:
-            mujoco.mj_resetData(model, data)
-        else:
-            mujoco.mj_resetDataKeyframe(model, data, self.home_key)
+        reset_to_key(model, data, self.home_key)
+
+
+def reset_to_key(model: mujoco.MjModel, data: mujoco.MjData, key: int | None) -> None:
+    """`data` reset to keyframe `key`, or to the model's default state (qpos0, at rest) for None."""
+    if key is None:
+        mujoco.mj_resetData(model, data)
+    else:
+        mujoco.mj_resetDataKeyframe(model, data, key)
 
 
 def _is_servo(model: mujoco.MjModel, a: int) -> bool:

@@ -13,6 +13,7 @@ import numpy as np
 from .exceptions import InvalidConfig
 from .ik import DlsSolver, IKOptions
 from .kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
+from .robots import reset_to_key
 from .servos import servos_on
 from .taskmaps import Frame, Position, resolve_frame
 
@@ -183,10 +184,7 @@ def _rest_at(
     ctrl: np.ndarray,
     home_q: np.ndarray,
 ) -> None:
-    if key is None:
-        mujoco.mj_resetData(model, data)
-    else:
-        mujoco.mj_resetDataKeyframe(model, data, key)
+    reset_to_key(model, data, key)
     data.qpos[qpos] = home_q
     data.ctrl[ctrl] = home_q
     mujoco.mj_forward(model, data)
