@@ -47,7 +47,9 @@ def episodes(run_dir: Path, target: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main(results_dir: Path) -> None:
-    print("| trained on | evaluated on | goals inside the training box: success (episodes) | outside: success (episodes) |")
+    print(
+        "| trained on | evaluated on | goals inside the training box: success (episodes) | outside: success (episodes) |"
+    )
     print("| --- | --- | --- | --- |")
     for trained, target in PAIRS:
         box = base_task(trained).goal.position
