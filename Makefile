@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 # Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
 export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
 
-.PHONY: install demo render-demo test lint type bench
+.PHONY: install demo render-demo test lint type bench reproduce-check
 
 install: $(VENV)/.installed
 
@@ -26,6 +26,10 @@ lint:
 
 type:  ## mypy over src/tsrl ([tool.mypy] in pyproject.toml)
 	$(BIN)/mypy
+
+reproduce-check: install  ## re-derives from the committed data (docs/results/): every study's comparisons, the README's across-study table
+	$(BIN)/python scripts/readme_comparisons.py --check
+	$(BIN)/python -m pytest -q -p no:cacheprovider tests/experiments/test_across.py
 
 bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning: benchmarks/learning.py
 	$(BIN)/python -m pip install -q -e ".[bench]"

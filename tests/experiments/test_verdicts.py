@@ -84,3 +84,13 @@ def test_interaction_is_the_change_of_the_effect_between_conditions():
     spread = np.array([0.5, 0.55, 0.6, 0.6, 0.6, 0.6, 0.65, 0.7])
     est = st.interaction(spread, np.full(8, 0.2), a2, b2, resamples=500)
     assert est.point[0] == pytest.approx(-0.3) and est.low[0] < -0.3 < est.high[0]
+
+
+def test_a_non_detection_whose_interval_lies_beyond_the_relevant_effect_says_so():
+    # Across many comparisons Holm can leave a large bootstrap effect unconfirmed: not "outside".
+    beyond = st.verdict("fs1", "baseline", _effect(0.35, 0.16, 0.51), 0.07, 0.33, "greater", 0.05)
+    assert beyond.endswith(
+        "the 95% interval lies beyond an effect of 0.05, the test at this level does not confirm it"
+    )
+    below = st.verdict("a", "b", _effect(0.01, -0.01, 0.02), 0.3, 0.03, "greater", 0.05)
+    assert below.endswith("an effect of 0.05 is outside the 95% interval")

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..configs import load_table
+from . import evaluations as ev
 from . import statistics as st
 from .aggregate import RESULTS_CSV, compare, read_results, sort_key
 from .config import EXPERIMENT_FILE, Comparison, config_labels
@@ -54,8 +55,9 @@ def _arm_fingerprint(curve: Curve) -> str:
 
 
 def study_comparisons(folder: Path) -> list[dict[str, Any]]:
-    """A study's comparisons recomputed from its results.csv and experiment.json (aggregate.compare),
-    each with `study` and `arm_runs` (its two arms' labels -> fingerprints of their runs)."""
+    """A study's comparisons recomputed from its results.csv, evaluations.csv (evaluation-only arms) and
+    experiment.json (aggregate.compare), each with `study` and `arm_runs` (its two arms' labels ->
+    fingerprints of their runs)."""
     rows = sorted(read_results(folder / RESULTS_CSV), key=sort_key)
     all_curves = curves(rows)
     info = json.loads((folder / EXPERIMENT_FILE).read_text())
@@ -65,7 +67,10 @@ def study_comparisons(folder: Path) -> list[dict[str, Any]]:
     )
     labels = config_labels([c.key for c in all_curves])
     fingerprints = {label: _arm_fingerprint(c) for label, c in zip(labels, all_curves, strict=True)}
-    out = compare(all_curves, comparisons)
+    eval_success = ev.per_seed_success(ev.read_evaluations(folder / ev.EVALUATIONS_CSV))
+    for label, values in eval_success.items():  # evaluation-only arms: their per-seed success rates
+        fingerprints[label] = hashlib.sha256(repr((folder.name, label, values.tolist())).encode()).hexdigest()
+    out = compare(all_curves, comparisons, eval_success)
     for row in out:
         row["study"] = folder.name
         row["arm_runs"] = {arm: fingerprints[arm] for arm in (row["a"], row["b"])}

@@ -252,6 +252,9 @@ def verdict(
         direction
     ]
     if not any(effect.low[0] <= c <= effect.high[0] for c in claimed):
+        beyond = effect.low[0] > min_effect if direction != "less" else effect.high[0] < -min_effect
+        if beyond or (direction == "two-sided" and effect.high[0] < -min_effect):
+            return f"{text}; the 95% interval lies beyond an effect of {min_effect:g}, the test at this level does not confirm it"
         return f"{text}; an effect of {min_effect:g} is outside the 95% interval"
     if mde <= min_effect:
         return f"{text}; it had the power to detect an effect of {min_effect:g} and did not"
