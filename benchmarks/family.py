@@ -29,11 +29,10 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from learning import THRESHOLDS, first_reaching, summarize
+from learning import THRESHOLDS, first_reaching, summarize, train_or_resume
 
 from tsrl.agents import AgentConfig, TrainConfig, read_progress
 from tsrl.agents.config import TASK_ACTION, DemoConfig
-from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
 TASKS: dict[str, tuple[int, int]] = {
@@ -81,16 +80,7 @@ def configs(task: str, seeds: list[int], total: int, eval_freq: int, demos: Path
 
 def run_one(args: tuple[TrainConfig, Path]) -> Path:
     """Trains (or resumes, or reuses) one run in <parent>/<run name>."""
-    cfg, parent = args
-    from tsrl.agents.training import resume, train
-
-    run_dir = parent / cfg.run_name
-    checkpoint = latest_checkpoint(run_dir)
-    if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
-        return run_dir
-    if (run_dir / "config.json").is_file():
-        return resume(run_dir, total_timesteps=cfg.total_timesteps, progress_bar=False)
-    return train(cfg, parent, progress_bar=False)
+    return train_or_resume(*args)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -139,11 +139,16 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
     cfg, out_dir = args
     if cfg.env_id.startswith("Fetch"):
         register_fetch_envs()
-    from tsrl.agents.training import resume, train
-
     parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place", PANDA: "panda-reach"}.get(
         cfg.env_id, "own-robot" if cfg.is_task_file else "reach"
     )
+    return train_or_resume(cfg, parent)
+
+
+def train_or_resume(cfg: TrainConfig, parent: Path) -> Path:
+    """The run of `cfg` in <parent>/<run name>: reused when finished, resumed when interrupted, else trained."""
+    from tsrl.agents.training import resume, train
+
     run_dir = parent / cfg.run_name
     checkpoint = latest_checkpoint(run_dir)
     if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
