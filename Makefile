@@ -27,8 +27,9 @@ lint:
 type:  ## mypy over src/tsrl ([tool.mypy] in pyproject.toml)
 	$(BIN)/mypy
 
-reproduce-check: install  ## re-derives from the committed data (docs/results/): every study's comparisons, the README's across-study table
+reproduce-check: install  ## re-derives from the committed data (docs/results/): every study's comparisons, the README's across-study table, every benchmark table
 	$(BIN)/python scripts/readme_comparisons.py --check
+	$(BIN)/python scripts/benchmark_tables.py
 	$(BIN)/python -m pytest -q -p no:cacheprovider tests/experiments/test_across.py
 
 bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning: benchmarks/learning.py
