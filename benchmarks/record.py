@@ -26,8 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA_ROOT = ROOT / "docs" / "results" / "benchmarks"
 META = "meta.json"
 DATA_CSV = "data.csv"
-#: Paths whose uncommitted edits make a measurement not the named commit's.
-CODE_PATHS = ("src", "benchmarks", "pyproject.toml")
+#: Paths whose uncommitted edits make a measurement not the named commit's (and the benchmark itself).
+CODE_PATHS = ("src", "pyproject.toml", "benchmarks/record.py", "benchmarks/fetch_compat.py")
 
 
 def add_save_argument(parser: argparse.ArgumentParser, name: str) -> None:
@@ -103,10 +103,11 @@ def machine() -> dict[str, Any]:
 def save_meta(
     out: Path, script: str, table: str, doc: str, started: dt.datetime, load_at_start: list[float]
 ) -> Path:
-    """meta.json of a measurement: the command (this process's argv), the commit and whether the
-    code paths had uncommitted edits, the machine, the start and end (UTC), and where its table is
+    """meta.json of a measurement: the command (this process's argv), the commit and the files of
+    CODE_PATHS and `script` with uncommitted edits (none: the measurement is the commit's), the machine, the start and end (UTC), and where its table is
     rendered (`script`'s function `table`) and shown (`doc`)."""
-    dirty = [line[3:] for line in _git("status", "--porcelain", "--", *CODE_PATHS).splitlines() if line]
+    status = _git("status", "--porcelain", "--", *CODE_PATHS, script)
+    dirty = [line[3:] for line in status.splitlines() if line]
     meta = {
         "command": " ".join(["python", script, *sys.argv[1:]]),
         "commit": _git("rev-parse", "HEAD").strip(),
