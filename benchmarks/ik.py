@@ -4,6 +4,7 @@
     python benchmarks/ik.py                    # the UR5e: 200 global + 200 local targets, seed 0
     python benchmarks/ik.py --robot panda      # a built-in robot, or a robot's TOML file
     python benchmarks/ik.py --ablation         # what each ingredient of the solver adds (global targets)
+    python benchmarks/ik.py ... --save [NAME]  # and write the per-target results (benchmarks/record.py)
 
 Both solvers load OUR model of the robot (`tsrl.robots.load_robot(...).load_model()`) and reach for
 the full pose of its TCP frame, moving the robot's joints. A solve succeeds when the position error is
@@ -24,29 +25,31 @@ and a loop that integrates each step and stops as soon as `pose_error` meets the
 steps {none, 0.2, 0.5, 1.0} rad and lm_damping {0, 0.1, 1}. Ours and mink alternate target by
 target, so machine load hits both alike. Times are wall-clock per full solve, start
 configuration to answer.
+
+--save writes one row per target and solver (success, iterations, seconds) and setup.json (robot,
+versions, targets, seed) to docs/results/benchmarks/NAME/ (default ik-ablation, or ik-ROBOT, with
+-posture under --posture); `table` and `ablation_table` render docs/ik.md's tables from them.
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import json
 import time
 from collections.abc import Callable
 from importlib.metadata import version
-from typing import Any, NamedTuple
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
 
-import mujoco
 import numpy as np
+from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
-try:
-    import mink
-except ImportError as err:  # a benchmark-only dependency
-    raise SystemExit('mink is missing: pip install -e ".[bench]"') from err
+if TYPE_CHECKING:  # the measuring functions import these; the table renderers need none of them
+    import mujoco
 
-from tsrl.ik import DlsSolver, IKOptions
-from tsrl.kinematics import arm_qpos_indices, forward_kinematics, joint_limits, random_configurations
-from tsrl.robots import Robot, load_robot
-from tsrl.taskmaps import TaskMap, parse_spec
+    from tsrl.robots import Robot
+    from tsrl.taskmaps import TaskMap
 
 POS_TOL = 1e-4  # m
 ANG_TOL = 1e-4  # rad
@@ -82,6 +85,9 @@ class Bench(NamedTuple):
 
 
 def make_bench(robot: str) -> Bench:
+    from tsrl.robots import load_robot
+    from tsrl.taskmaps import parse_spec
+
     described = load_robot(robot)
     model = described.load_model()
     pose = parse_spec(f"position({described.tcp}), quaternion({described.tcp})", model)
@@ -107,6 +113,10 @@ def reached(bench: Bench, data: mujoco.MjData, case: Case) -> bool:
 
 
 def global_cases(bench: Bench, rng: np.random.Generator, n: int) -> list[Case]:
+    import mujoco
+
+    from tsrl.kinematics import forward_kinematics, random_configurations
+
     model, joints = bench.model, bench.robot.joints
     data = mujoco.MjData(model)
     cases = []
@@ -117,6 +127,10 @@ def global_cases(bench: Bench, rng: np.random.Generator, n: int) -> list[Case]:
 
 
 def local_cases(bench: Bench, rng: np.random.Generator, n: int) -> list[Case]:
+    import mujoco
+
+    from tsrl.kinematics import forward_kinematics, joint_limits
+
     model, joints = bench.model, bench.robot.joints
     data = mujoco.MjData(model)
     lo, hi = joint_limits(model, joints).T
@@ -141,6 +155,12 @@ class Ours:
     """DlsSolver.solve on position(tcp), quaternion(tcp); `with_value` passes the start value as the env does."""
 
     def __init__(self, bench: Bench, with_value: bool = False, **options: Any):
+        import mujoco
+
+        from tsrl.ik import DlsSolver, IKOptions
+        from tsrl.kinematics import arm_qpos_indices, forward_kinematics
+
+        self.forward_kinematics = forward_kinematics
         self.bench, self.data = bench, mujoco.MjData(bench.model)
         self.qadr = arm_qpos_indices(bench.model, bench.robot.joints)
         self.with_value = with_value
@@ -152,14 +172,14 @@ class Ours:
         target = np.concatenate([case.pos, case.quat])
         value = None
         if self.with_value:  # what the environment already holds at the start of a step
-            forward_kinematics(model, data, case.q_start, joints)
+            self.forward_kinematics(model, data, case.q_start, joints)
             value = self.bench.pose(model, data)
         else:
             data.qpos[self.qadr] = case.q_start
         start = time.perf_counter()
         result = self.solver.solve(data, target, value)
         seconds = time.perf_counter() - start
-        forward_kinematics(model, data, result.q, joints)
+        self.forward_kinematics(model, data, result.q, joints)
         return Outcome(reached(self.bench, data, case), result.iterations, seconds)
 
 
@@ -167,8 +187,17 @@ class Mink:
     """mink 1.3: FrameTask + ConfigurationLimit + VelocityLimit, daqp, integrate until reached."""
 
     def __init__(self, bench: Bench):
+        import mujoco
+
+        from tsrl.kinematics import arm_qpos_indices
+
+        try:
+            import mink
+        except ImportError as err:  # a benchmark-only dependency
+            raise SystemExit('mink is missing: pip install -e ".[bench]"') from err
+
         model, robot = bench.model, bench.robot
-        self.bench = bench
+        self.mink, self.bench = mink, bench
         self.configuration = mink.Configuration(model)
         kind = "site" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.tcp) >= 0 else "body"
         self.task = mink.FrameTask(robot.tcp, kind, position_cost=1.0, orientation_cost=1.0)
@@ -180,7 +209,7 @@ class Mink:
         self.qpos = model.qpos0.copy()  # the other coordinates stay at qpos0
 
     def __call__(self, case: Case) -> Outcome:
-        configuration = self.configuration
+        mink, configuration = self.mink, self.configuration
         data = configuration.data
         self.task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(wxyz=case.quat), case.pos))
         self.qpos[self.qadr] = case.q_start
@@ -212,12 +241,21 @@ def run(solvers: dict[str, Callable[[Case], Outcome]], cases: list[Case]) -> dic
     return out
 
 
-def summary(outcomes: list[Outcome]) -> tuple[float, float, float, float]:
-    """(success rate, median iterations, median time [us], 90th-percentile time [us])."""
-    t = np.array([o.seconds for o in outcomes]) * 1e6
+def outcome_rows(key: dict[str, str], outcomes: list[Outcome]) -> list[dict[str, Any]]:
+    """One row per target: `key`'s columns, then target (index), success (0/1), iterations, seconds."""
+    return [
+        key | {"target": i, "success": int(o.success), "iterations": o.iterations, "seconds": o.seconds}
+        for i, o in enumerate(outcomes)
+    ]
+
+
+def summary(rows: list[dict[str, Any]]) -> tuple[float, float, float, float]:
+    """(success rate, median iterations, median time [us], 90th-percentile time [us]) of per-target
+    rows (`outcome_rows`, or their CSV strings)."""
+    t = np.array([float(r["seconds"]) for r in rows]) * 1e6
     return (
-        float(np.mean([o.success for o in outcomes])),
-        float(np.median([o.iterations for o in outcomes])),
+        float(np.mean([int(r["success"]) for r in rows])),
+        float(np.median([int(r["iterations"]) for r in rows])),
         float(np.median(t)),
         float(np.percentile(t, 90)),
     )
@@ -239,12 +277,106 @@ ABLATION: dict[str, dict[str, Any]] = {
 }
 
 
-def ablation(bench: Bench, cases: list[Case], **extra: Any) -> None:
-    print("| global targets, tsrl | success | median iters | median time [us] | p90 time [us] |")
-    print("| --- | --- | --- | --- | --- |")
+def measure_ablation(bench: Bench, cases: list[Case], **extra: Any) -> list[dict[str, Any]]:
+    """Per-target rows (variant, target, success, iterations, seconds) of each ABLATION variant."""
+    rows = []
     for name, options in ABLATION.items():
-        rate, iters, median, p90 = summary(run({name: Ours(bench, **extra, **options)}, cases)[name])
-        print(f"| {name} | {rate:.1%} | {iters:.0f} | {median:.0f} | {p90:.0f} |")
+        outcomes = run({name: Ours(bench, **extra, **options)}, cases)[name]
+        rows += outcome_rows({"variant": name}, outcomes)
+    return rows
+
+
+def measure(bench: Bench, sets: dict[str, list[Case]], **extra: Any) -> list[dict[str, Any]]:
+    """Per-target rows (set, solver, target, success, iterations, seconds): tsrl and mink on every
+    set, and on the local set also tsrl given the start's map value."""
+    ours, ours_value, baseline = Ours(bench, **extra), Ours(bench, with_value=True, **extra), Mink(bench)
+    rows = []
+    for set_name, cases in sets.items():
+        solvers: dict[str, Callable[[Case], Outcome]] = {"tsrl": ours, "mink": baseline}
+        if set_name == "local":
+            solvers["tsrl, initial_value"] = ours_value
+        for name, outcomes in run(solvers, cases).items():
+            rows += outcome_rows({"set": set_name, "solver": name}, outcomes)
+    return rows
+
+
+def setup(bench: Bench, args: argparse.Namespace) -> dict[str, Any]:
+    """What the rows were measured on: robot, joints, TCP, targets per set, seed, posture, versions."""
+    import mujoco
+
+    versions = {"mujoco": mujoco.__version__}
+    if not args.ablation:
+        versions |= {"mink": version("mink"), "daqp": version("daqp")}
+    return {
+        "robot": bench.robot.name,
+        "joints": list(bench.robot.joints),
+        "tcp": bench.robot.tcp,
+        "targets_per_set": args.n,
+        "seed": args.seed,
+        "posture": args.posture,
+        "versions": versions,
+    }
+
+
+def render_ablation(rows: list[dict[str, Any]]) -> list[str]:
+    """docs/ik.md's ablation table (markdown lines) from `measure_ablation`'s rows (or their CSV strings)."""
+    lines = [
+        "| global targets, tsrl | success | median iters | median time [us] | p90 time [us] |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for name in dict.fromkeys(r["variant"] for r in rows):
+        group = [r for r in rows if r["variant"] == name]
+        rate, iters, median, p90 = summary(group)
+        solved = sum(int(r["success"]) for r in group)
+        lines.append(
+            f"| {name} | {rate:.1%} ({solved}/{len(group)}) | {iters:.0f} | {median:.0f} | {p90:.0f} |"
+        )
+    return lines
+
+
+def render(rows: list[dict[str, Any]], info: dict[str, Any]) -> list[str]:
+    """docs/ik.md's table against mink (markdown lines) from `measure`'s rows (or their CSV strings)
+    and `setup`'s description."""
+    v = info["versions"]
+    posture = ", tsrl with the posture term toward home" if info["posture"] else ""
+    described = (
+        f"Robot {info['robot']} (TCP `{info['tcp']}`), {info['targets_per_set']} targets per set, "
+        f"seed {info['seed']}{posture}; mujoco {v['mujoco']}, mink {v['mink']}, daqp {v['daqp']}."
+    )
+    lines = [
+        described,
+        "",
+        "| set | solver | success | median iters | median time [us] | p90 time [us] |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    medians: dict[tuple[str, str], float] = {}
+    for set_name, solver in dict.fromkeys((r["set"], r["solver"]) for r in rows):
+        group = [r for r in rows if (r["set"], r["solver"]) == (set_name, solver)]
+        rate, iters, median, p90 = summary(group)
+        medians[set_name, solver] = median
+        solved = f"{rate:.1%} ({sum(int(r['success']) for r in group)}/{len(group)})"
+        lines.append(f"| {set_name} | {solver} | {solved} | {iters:.0f} | {median:.0f} | {p90:.0f} |")
+    ratios = [
+        f"{s} {medians[s, 'tsrl'] / medians[s, 'mink']:.2f}" for s in dict.fromkeys(s for s, _ in medians)
+    ]
+    return lines + ["", f"Median time tsrl / mink: {', '.join(ratios)}."]
+
+
+SETUP_JSON = "setup.json"
+
+
+def ablation_table(data_dir: Path) -> list[str]:
+    """The ablation table from the data `--ablation --save` wrote to `data_dir`."""
+    return render_ablation(read_rows(data_dir / DATA_CSV))
+
+
+def table(data_dir: Path) -> list[str]:
+    """The table against mink from the data `--save` wrote to `data_dir`."""
+    return render(read_rows(data_dir / DATA_CSV), json.loads((data_dir / SETUP_JSON).read_text()))
+
+
+#: --save's default NAME, replaced by ik-ablation or ik-ROBOT[-posture].
+DEFAULT_NAME = "ik-ROBOT"
 
 
 def main() -> None:
@@ -258,36 +390,29 @@ def main() -> None:
     parser.add_argument(
         "--posture", action="store_true", help="ours with the null-space posture term toward home"
     )
+    add_save_argument(parser, DEFAULT_NAME)
     args = parser.parse_args()
+    if args.save == DEFAULT_NAME:
+        robot = Path(args.robot).stem
+        args.save = "ik-ablation" if args.ablation else f"ik-{robot}" + ("-posture" if args.posture else "")
 
     bench = make_bench(args.robot)
     rng = np.random.default_rng(args.seed)
     sets = {"global": global_cases(bench, rng, args.n), "local": local_cases(bench, rng, args.n)}
     extra: dict[str, Any] = {"posture": tuple(bench.home)} if args.posture else {}
-    if args.ablation:
-        ablation(bench, sets["global"], **extra)
-        return
-    ours, ours_value, baseline = Ours(bench, **extra), Ours(bench, with_value=True, **extra), Mink(bench)
-
+    info = setup(bench, args)
+    renderer = "ablation_table" if args.ablation else "table"
+    with Measurement(args.save, __file__, renderer, "docs/ik.md") as out:
+        if args.ablation:
+            rows = measure_ablation(bench, sets["global"], **extra)
+        else:
+            rows = measure(bench, sets, **extra)
+        if out is not None:
+            write_rows(out / DATA_CSV, rows)
+            (out / SETUP_JSON).write_text(json.dumps(info, indent=2) + "\n")
     print(f"robot {bench.robot.name}: joints {', '.join(bench.robot.joints)}; TCP {bench.robot.tcp}")
-    print(f"tsrl.ik vs mink {version('mink')} (daqp {version('daqp')}), mujoco {mujoco.__version__}")
-    print(
-        f"{args.n} targets per set, seed {args.seed}; success: |dp| <= {POS_TOL} m and angle <= {ANG_TOL} rad\n"
-    )
-    print("| set | solver | success | median iters | median time [us] | p90 time [us] |")
-    print("| --- | --- | --- | --- | --- | --- |")
-    ratios = {}
-    for set_name, cases in sets.items():
-        solvers: dict[str, Callable[[Case], Outcome]] = {"tsrl": ours, "mink": baseline}
-        if set_name == "local":
-            solvers["tsrl, initial_value"] = ours_value
-        results = {name: summary(outcomes) for name, outcomes in run(solvers, cases).items()}
-        for name, (rate, iters, median, p90) in results.items():
-            print(f"| {set_name} | {name} | {rate:.1%} | {iters:.0f} | {median:.0f} | {p90:.0f} |")
-        ratios[set_name] = results["tsrl"][2] / results["mink"][2]
-    print()
-    for set_name, ratio in ratios.items():
-        print(f"{set_name}: median time tsrl / mink = {ratio:.2f}")
+    print(f"success: |dp| <= {POS_TOL} m and angle <= {ANG_TOL} rad\n")
+    print("\n".join(render_ablation(rows) if args.ablation else render(rows, info)))
 
 
 if __name__ == "__main__":
