@@ -29,9 +29,10 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from learning import THRESHOLDS, first_reaching, summarize, train_or_resume
+from learning import train_or_resume
+from learning_tables import THRESHOLDS, first_reaching, group_table, read_progress_csv
 
-from tsrl.agents import AgentConfig, TrainConfig, read_progress
+from tsrl.agents import AgentConfig, TrainConfig
 from tsrl.agents.config import TASK_ACTION, DemoConfig
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
@@ -115,9 +116,10 @@ def main(argv: list[str] | None = None) -> None:
     ]
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
-        summarize(f"tsrl/{task} with {DEMO_EPISODES} demonstrations", run_dirs, train_time=True)
+        label = f"tsrl/{task} with {DEMO_EPISODES} demonstrations"
+        print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
-        steps = [first_reaching(read_progress(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
+        steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
         cells = ", ".join("not reached" if math.isnan(s) else f"{s:,.0f}" for s in steps)
         met = all(not math.isnan(s) and s <= target for s in steps)
         lines.append(f"| {task} | {target:,} | {cells} | {'yes' if met else 'no'} |")

@@ -38,19 +38,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.stats
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from fetch_compat import register_fetch_envs
+from learning_tables import PANDA, save_runs, suite_lines
+from record import Measurement, add_save_argument
 
-from tsrl.agents import AgentConfig, HerConfig, TrainConfig, read_progress
+from tsrl.agents import AgentConfig, HerConfig, TrainConfig
 from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 
-THRESHOLDS = (0.5, 0.9, 0.95)
 PICK = "tsrl/UR5ePickPlace-v0"
-PANDA = "tsrl/PandaReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
 BUDGETS = {"demos": (50_000, 2_500, 100), "learner": (15_000, 2_500, 100), "own-robot": (10_000, 250, 20)}
 BUDGET = (6_000, 200, 20)
@@ -63,10 +62,10 @@ WITHOUT: dict[str, dict[str, Any]] = {
     "symmetric": {"demos": {"batch_share": 0.125}},
     "resets": {"demos": {"reset_prob": 0.0}},
 }
+#: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
+SUITE_TABLES = {"demos": "train", "learner": "train", "panda": "panda", "own-robot": "own_robot"}
 #: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
 OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch_reach.toml"
-#: The own-robot target: every seed at this evaluation success within the budget.
-OWN_ROBOT_TARGET = 0.9
 
 
 def learner_agent(demos: Path, without: str | None = None) -> AgentConfig:
@@ -156,71 +155,6 @@ def train_or_resume(cfg: TrainConfig, parent: Path) -> Path:
     if (run_dir / "config.json").is_file():
         return resume(run_dir, total_timesteps=cfg.total_timesteps, progress_bar=False)
     return train(cfg, parent, progress_bar=False)
-
-
-def first_reaching(
-    rows: list[dict[str, float]], threshold: float, train_time: bool = False
-) -> tuple[float, float]:
-    """(env steps, wall time s) of the first evaluation with success >= threshold; NaN if none.
-
-    With `train_time`, the wall time leaves the evaluations out.
-    """
-    for r in rows:
-        if r["eval_success_rate"] >= threshold:
-            return r["env_steps"], r["wall_time_s"] - (r["eval_time_s"] if train_time else 0.0)
-    return math.nan, math.nan
-
-
-def mean_ci95(values: np.ndarray) -> tuple[float, float]:
-    """Mean over seeds and the half-width of its 95% Student-t interval (0 for one seed): this table's
-    summary, as docs/training.md quotes it. Learning curves and studies use the IQM and bootstrap
-    interval of tsrl.experiments.statistics."""
-    values = np.asarray(values, dtype=float)
-    if len(values) < 2:
-        return float(values.mean()), 0.0
-    sem = values.std(ddof=1) / math.sqrt(len(values))
-    return float(values.mean()), float(scipy.stats.t.ppf(0.975, len(values) - 1) * sem)
-
-
-def summarize(label: str, run_dirs: list[Path], train_time: bool = False) -> None:
-    """Prints one line per seed and a mean +- 95% CI line (over the seeds that reached the level).
-
-    Wall times include the evaluations unless `train_time`.
-    """
-    header = " ".join(
-        f"{'steps@' + str(int(t * 100)) + '%':>10} {'s@' + str(int(t * 100)) + '%':>7}" for t in THRESHOLDS
-    )
-    print(f"\n{label}")
-    print(f"{'run':<10} {header} {'final':>6} {'steps/s':>8}")
-    per_seed = []
-    for run_dir in run_dirs:
-        rows = read_progress(run_dir)
-        reached = [first_reaching(rows, t, train_time) for t in THRESHOLDS]
-        last = rows[-1]
-        train_time = last["wall_time_s"] - (last.get("eval_time_s") or 0.0)
-        rate = last["env_steps"] / train_time if train_time > 0 else math.nan
-        per_seed.append((reached, last["eval_success_rate"], rate))
-        cells = " ".join(f"{_i(s):>10} {_f(w):>7}" for s, w in reached)
-        seed = run_dir.name.split("__s")[-1].split("__")[
-            0
-        ]  # <env>__<obs>__<action>__<algo>__s<seed>[__her-plain]
-        print(f"{'seed ' + seed:<10} {cells} {last['eval_success_rate']:>6.2f} {rate:>8.1f}")
-    cells = []
-    for k in range(len(THRESHOLDS)):
-        steps = np.array([p[0][k][0] for p in per_seed])
-        walls = np.array([p[0][k][1] for p in per_seed])
-        ok = np.isfinite(steps)
-        if ok.any():
-            (ms, hs), (mw, hw) = mean_ci95(steps[ok]), mean_ci95(walls[ok])
-            note = "" if ok.all() else f"[{ok.sum()}/{len(ok)}]"
-            cells.append(f"{f'{ms:.0f}±{hs:.0f}{note}':>10} {f'{mw:.0f}±{hw:.0f}':>7}")
-        else:
-            cells.append(f"{'never':>10} {'-':>7}")
-    final = mean_ci95(np.array([p[1] for p in per_seed]))
-    rate = mean_ci95(np.array([p[2] for p in per_seed]))
-    print(f"{'mean±CI95':<10} {' '.join(cells)} {final[0]:>6.2f} {rate[0]:>8.1f}")
-    reached_95 = sum(np.isfinite(p[0][THRESHOLDS.index(0.95)][0]) for p in per_seed)
-    print(f"seeds reaching 95% within the budget: {reached_95}/{len(per_seed)}")
 
 
 def record_benchmark_demos(out_dir: Path) -> Path:
@@ -420,7 +354,10 @@ def main() -> None:
         "--jobs", type=int, default=1, help="runs in parallel (timings: no more than free cores)"
     )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/learning"))
+    add_save_argument(parser, "learning-SUITE")
     args = parser.parse_args()
+    if args.save == "learning-SUITE":
+        args.save = f"learning-{args.suite}"
 
     if args.suite == "speed":
         speed(args.seeds or [0], args.out_dir)
@@ -449,56 +386,17 @@ def main() -> None:
         f"on {eval_episodes} episodes; agent: {cfgs[0].agent if args.suite == 'learner' else AgentConfig()}",
         flush=True,
     )
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
-            done = list(pool.map(run_one, work))
-    else:
-        done = [run_one(w) for w in work]
-
-    groups: dict[str, list[Path]] = {}
-    for (cfg, _), run_dir in zip(work, done, strict=True):
-        label = f"{cfg.env_id} obs={cfg.obs} action={cfg.action} algo={cfg.agent.algo} HER={cfg.agent.her.relabel}"
-        if cfg.agent.demos.active:
-            d = cfg.agent.demos
-            label += (
-                f" demos={Path(d.path).name} share={d.batch_share} bc={d.bc_weight} q_filter={d.q_filter}"
-            )
-        if cfg.agent.learner != "paper":
-            a = cfg.agent
-            label += f" learner={a.learner} layer_norm={a.layer_norm} utd={a.utd} resets={a.demos.reset_prob}"
-        groups.setdefault(label, []).append(run_dir)
-    for label, run_dirs in groups.items():
-        summarize(label, run_dirs, train_time=args.suite in ("demos", "learner"))
-    if args.suite == "panda":
-        panda_within_twice_ur5e(groups)
-    if args.suite == "own-robot":
-        every_seed_reaches(done, OWN_ROBOT_TARGET, total)
-
-
-def every_seed_reaches(run_dirs: list[Path], threshold: float, budget: int) -> None:
-    """Prints each seed's env steps to `threshold` evaluation success and whether all got there within `budget`."""
-    steps = [first_reaching(read_progress(d), threshold)[0] for d in run_dirs]
-    ok = all(math.isfinite(s) and s <= budget for s in steps)
-    print(
-        f"\nenv steps to {threshold:.0%}: {', '.join(_i(s) for s in steps)}; every seed within {budget:,}: "
-        f"{'yes' if ok else 'no'}"
-    )
-
-
-def panda_within_twice_ur5e(groups: dict[str, list[Path]]) -> None:
-    """Prints whether every Panda seed reached 95% within 2x the env steps the UR5e needed (the mean
-    over the UR5e seeds of their first evaluation at 95%)."""
-    steps = {
-        label.split()[0]: [first_reaching(read_progress(d), 0.95)[0] for d in run_dirs]
-        for label, run_dirs in groups.items()
-    }
-    ur5e, panda = np.array(steps["tsrl/UR5eReach-v0"]), np.array(steps[PANDA])
-    limit = 2 * float(np.mean(ur5e))
-    ok = bool(np.all(np.isfinite(panda)) and np.all(panda <= limit))
-    print(
-        f"\nUR5e env steps to 95%: {', '.join(_i(x) for x in ur5e)} (mean {_f(np.mean(ur5e))}); 2x = {limit:.0f}\n"
-        f"Panda env steps to 95%: {', '.join(_i(x) for x in panda)}: every seed within 2x: {'yes' if ok else 'no'}"
-    )
+    kind = SUITE_TABLES.get(args.suite, "wall")
+    doc = "docs/robots.md" if args.suite == "own-robot" else "docs/training.md"
+    with Measurement(args.save, __file__, f"benchmarks/learning_tables.py:table_{kind}", doc) as out:
+        if args.jobs > 1:
+            with ProcessPoolExecutor(args.jobs) as pool:
+                done = list(pool.map(run_one, work))
+        else:
+            done = [run_one(w) for w in work]
+        if out is not None:
+            save_runs(done, out)
+    print("\n".join(["", *suite_lines(kind, done)]))
 
 
 if __name__ == "__main__":

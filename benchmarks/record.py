@@ -72,7 +72,7 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 def _git(*args: str) -> str:
     return subprocess.run(
         ["git", *args], cwd=ROOT, capture_output=True, text=True, check=False
-    ).stdout.strip()
+    ).stdout
 
 
 def _cpu() -> str:
@@ -129,8 +129,8 @@ class Measurement:
     folder (or None without --save) and writes meta.json when the block finishes without error."""
 
     def __init__(self, name: str | None, script: str, table: str, doc: str) -> None:
-        """`script`: the benchmark's file (its `__file__`); `table`: its renderer's name; `doc`: the
-        repository path of the doc that shows the table."""
+        """`script`: the benchmark's file (its `__file__`); `table`: its renderer, a function of the
+        script or "benchmarks/other.py:function"; `doc`: the repository path of the doc that shows it."""
         self.name, self.table, self.doc = name, table, doc
         self.script = Path(script).resolve().relative_to(ROOT).as_posix()
         self.out: Path | None = None

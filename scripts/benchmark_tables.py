@@ -41,7 +41,8 @@ def derived_tables(data_root: Path = DATA_ROOT) -> dict[str, tuple[str, list[str
     out = {}
     for meta_path in sorted(data_root.glob("*/meta.json")):
         meta = json.loads(meta_path.read_text())
-        render: Callable[[Path], list[str]] = getattr(load_module(meta["script"]), meta["table"])
+        script, _, function = meta["table"].rpartition(":")  # "path:function", or a function of the script
+        render: Callable[[Path], list[str]] = getattr(load_module(script or meta["script"]), function)
         out[meta_path.parent.name] = (meta["doc"], render(meta_path.parent))
     return out
 

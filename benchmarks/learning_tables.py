@@ -1,0 +1,216 @@
+"""The learning benchmarks' tables (benchmarks/learning.py, family.py) from run folders: env steps and
+seconds to 50/90/95 % evaluation success per seed and the mean with its 95% Student-t interval, and the
+suites' verdict lines. Reads only each run's progress.csv and config.json (stdlib and numpy), so that
+scripts/benchmark_tables.py re-derives the tables from the copies `save_runs` commits under
+docs/results/benchmarks/NAME/<group>/<run>/.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+THRESHOLDS = (0.5, 0.9, 0.95)
+#: A run folder's files that its table is made of.
+RUN_FILES = ("progress.csv", "config.json")
+PANDA = "tsrl/PandaReach-v0"
+UR5E = "tsrl/UR5eReach-v0"
+#: The own-robot target: every seed at this evaluation success within the budget.
+OWN_ROBOT_TARGET = 0.9
+
+
+def read_progress_csv(run_dir: Path) -> list[dict[str, float]]:
+    """A run's progress.csv rows, every column a float (an empty cell NaN)."""
+    with open(run_dir / "progress.csv", newline="") as f:
+        return [{k: float(v) if v != "" else math.nan for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def save_runs(run_dirs: list[Path], out: Path) -> None:
+    """Copies each run's RUN_FILES to out/<its parent folder's name>/<run name>/."""
+    for run_dir in run_dirs:
+        dest = out / run_dir.parent.name / run_dir.name
+        dest.mkdir(parents=True, exist_ok=True)
+        for name in RUN_FILES:
+            shutil.copyfile(run_dir / name, dest / name)
+
+
+def saved_runs(data_dir: Path) -> list[Path]:
+    """The run folders under `data_dir` (as `save_runs` lays them out), sorted by path."""
+    return sorted(p.parent for p in data_dir.glob("*/*/progress.csv"))
+
+
+def first_reaching(
+    rows: list[dict[str, float]], threshold: float, train_time: bool = False
+) -> tuple[float, float]:
+    """(env steps, wall time s) of the first evaluation with success >= threshold; NaN if none.
+
+    With `train_time`, the wall time leaves the evaluations out.
+    """
+    for r in rows:
+        if r["eval_success_rate"] >= threshold:
+            return r["env_steps"], r["wall_time_s"] - (r["eval_time_s"] if train_time else 0.0)
+    return math.nan, math.nan
+
+
+def mean_ci95(values: np.ndarray) -> tuple[float, float]:
+    """Mean over seeds and the half-width of its 95% Student-t interval (0 for one seed). Learning
+    curves and studies use the IQM and bootstrap interval of tsrl.experiments.statistics."""
+    from scipy.stats import t
+
+    values = np.asarray(values, dtype=float)
+    if len(values) < 2:
+        return float(values.mean()), 0.0
+    sem = values.std(ddof=1) / math.sqrt(len(values))
+    return float(values.mean()), float(t.ppf(0.975, len(values) - 1) * sem)
+
+
+def run_label(config: dict[str, Any]) -> str:
+    """A run's group in the tables: env, observation, action, algorithm, HER and what differs from the
+    paper's agent (demonstrations, learner), from its config.json."""
+    agent = config["agent"]
+    obs = config["obs"] if len(config["obs"]) <= 12 else "the task's own"
+    label = f"{config['env_id']}, obs {obs}, action {config['action']}, {agent['algo'].upper()} + HER ({agent['her']['relabel']})"
+    demos = agent.get("demos") or {}
+    if demos.get("path") and demos.get("batch_share", 0) > 0 and demos.get("bc_weight", 0) > 0:
+        label += f", {Path(demos['path']).name} (share {demos['batch_share']}, BC {demos['bc_weight']})"
+    if agent.get("learner", "paper") != "paper":
+        label += (
+            f", learner {agent['learner']} (LayerNorm {agent['layer_norm']}, UTD {agent['utd']}, "
+            f"resets {demos.get('reset_prob', 0.0)})"
+        )
+    return label
+
+
+def grouped(run_dirs: list[Path]) -> dict[str, list[Path]]:
+    """label -> its run folders, in the order labels first appear."""
+    groups: dict[str, list[Path]] = {}
+    for run_dir in run_dirs:
+        groups.setdefault(run_label(json.loads((run_dir / "config.json").read_text())), []).append(run_dir)
+    return groups
+
+
+def _steps(x: float) -> str:
+    return "never" if not math.isfinite(x) else f"{x:,.0f}"
+
+
+def _seconds(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{x:.0f}"
+
+
+def _seed(run_dir: Path) -> int:
+    return int(json.loads((run_dir / "config.json").read_text())["seed"])
+
+
+def group_table(label: str, run_dirs: list[Path], train_time: bool) -> list[str]:
+    """One group's markdown table: a row per seed and a mean +- 95% CI row (over the seeds that reached
+    each level; [k/n] when not all did). Seconds leave the evaluations out when `train_time`."""
+    kind = "training s" if train_time else "s"
+    lines = [
+        f"**{label}**",
+        "",
+        f"| seed | env steps to 50% | to 90% | to 95% | {kind} to 50% | to 90% | to 95% | final success | env steps/s |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    per_seed = []
+    for run_dir in sorted(run_dirs, key=_seed):
+        rows = read_progress_csv(run_dir)
+        reached = [first_reaching(rows, t, train_time) for t in THRESHOLDS]
+        last = rows[-1]
+        training = last["wall_time_s"] - (0.0 if math.isnan(last["eval_time_s"]) else last["eval_time_s"])
+        rate = last["env_steps"] / training if training > 0 else math.nan
+        per_seed.append((reached, last["eval_success_rate"], rate))
+        cells = [_steps(s) for s, _ in reached] + [_seconds(w) for _, w in reached]
+        lines.append(
+            f"| {_seed(run_dir)} | {' | '.join(cells)} | {last['eval_success_rate']:.2f} | {rate:.0f} |"
+        )
+    steps_cells, time_cells = [], []
+    for k in range(len(THRESHOLDS)):
+        steps = np.array([p[0][k][0] for p in per_seed])
+        walls = np.array([p[0][k][1] for p in per_seed])
+        ok = np.isfinite(steps)
+        if not ok.any():
+            steps_cells.append("never")
+            time_cells.append("-")
+            continue
+        (ms, hs), (mw, hw) = mean_ci95(steps[ok]), mean_ci95(walls[ok])
+        note = "" if ok.all() else f" [{ok.sum()}/{len(ok)}]"
+        steps_cells.append(f"{ms:,.0f} ± {hs:,.0f}{note}")
+        time_cells.append(f"{mw:.0f} ± {hw:.0f}")
+    final, _ = mean_ci95(np.array([p[1] for p in per_seed]))
+    rate, _ = mean_ci95(np.array([p[2] for p in per_seed]))
+    lines.append(f"| mean ± 95% CI | {' | '.join(steps_cells + time_cells)} | {final:.2f} | {rate:.0f} |")
+    reached_95 = sum(math.isfinite(p[0][-1][0]) for p in per_seed)
+    lines += ["", f"Seeds reaching 95% within the budget: {reached_95}/{len(per_seed)}."]
+    return lines
+
+
+def tables(run_dirs: list[Path], train_time: bool) -> list[str]:
+    """Every group's table, separated by blank lines."""
+    lines: list[str] = []
+    for label, dirs in grouped(run_dirs).items():
+        lines += [*([""] if lines else []), *group_table(label, dirs, train_time)]
+    return lines
+
+
+def panda_within_twice_ur5e(run_dirs: list[Path]) -> list[str]:
+    """Whether every Panda seed reached 95% within 2x the mean of the UR5e seeds' env steps to 95%."""
+    steps: dict[str, list[float]] = {}
+    for run_dir in run_dirs:
+        env = json.loads((run_dir / "config.json").read_text())["env_id"]
+        steps.setdefault(env, []).append(first_reaching(read_progress_csv(run_dir), 0.95)[0])
+    ur5e, panda = np.array(steps[UR5E]), np.array(steps[PANDA])
+    limit = 2 * float(np.mean(ur5e))
+    ok = bool(np.all(np.isfinite(panda)) and np.all(panda <= limit))
+    line = (
+        f"UR5e env steps to 95%: {', '.join(_steps(x) for x in ur5e)} (mean {np.mean(ur5e):,.0f}; twice that "
+        f"{limit:,.0f}). Panda: {', '.join(_steps(x) for x in panda)}; every Panda seed within twice the "
+        f"UR5e's mean: {'yes' if ok else 'no'}."
+    )
+    return [line]
+
+
+def every_seed_reaches(run_dirs: list[Path], threshold: float, budget: int) -> list[str]:
+    """Each seed's env steps to `threshold` evaluation success and whether all got there within `budget`."""
+    steps = [first_reaching(read_progress_csv(d), threshold)[0] for d in sorted(run_dirs, key=_seed)]
+    ok = all(math.isfinite(s) and s <= budget for s in steps)
+    return [
+        f"Env steps to {threshold:.0%}: {', '.join(_steps(s) for s in steps)}; every seed within {budget:,}: {'yes' if ok else 'no'}."
+    ]
+
+
+def suite_lines(kind: str, run_dirs: list[Path]) -> list[str]:
+    """A suite's tables and verdict lines: `kind` "wall" (seconds include the evaluations), "train"
+    (training seconds), "panda" (wall, and the Panda-within-twice-the-UR5e verdict) or "own_robot"
+    (wall, and whether every seed reached OWN_ROBOT_TARGET within its budget)."""
+    lines = tables(run_dirs, train_time=kind == "train")
+    if kind == "panda":
+        lines += ["", *panda_within_twice_ur5e(run_dirs)]
+    if kind == "own_robot":
+        budget = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
+        lines += ["", *every_seed_reaches(run_dirs, OWN_ROBOT_TARGET, budget)]
+    return lines
+
+
+# The renderers that meta.json names ("benchmarks/learning_tables.py:table_<kind>"), one per kind.
+
+
+def table_wall(data_dir: Path) -> list[str]:
+    return suite_lines("wall", saved_runs(data_dir))
+
+
+def table_train(data_dir: Path) -> list[str]:
+    return suite_lines("train", saved_runs(data_dir))
+
+
+def table_panda(data_dir: Path) -> list[str]:
+    return suite_lines("panda", saved_runs(data_dir))
+
+
+def table_own_robot(data_dir: Path) -> list[str]:
+    return suite_lines("own_robot", saved_runs(data_dir))
