@@ -70,9 +70,7 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 
 
 def _git(*args: str) -> str:
-    return subprocess.run(
-        ["git", *args], cwd=ROOT, capture_output=True, text=True, check=False
-    ).stdout
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=False).stdout
 
 
 def _cpu() -> str:
@@ -100,18 +98,32 @@ def machine() -> dict[str, Any]:
     }
 
 
-def save_meta(
-    out: Path, script: str, table: str, doc: str, started: dt.datetime, load_at_start: list[float]
-) -> Path:
-    """meta.json of a measurement: the command (this process's argv), the commit and the files of
-    CODE_PATHS and `script` with uncommitted edits (none: the measurement is the commit's), the machine, the start and end (UTC), and where its table is
-    rendered (`script`'s function `table`) and shown (`doc`)."""
+def code_state(script: str) -> tuple[str, list[str]]:
+    """(HEAD's commit, the files of CODE_PATHS and `script` with uncommitted edits)."""
     status = _git("status", "--porcelain", "--", *CODE_PATHS, script)
-    dirty = [line[3:] for line in status.splitlines() if line]
+    return _git("rev-parse", "HEAD").strip(), [line[3:] for line in status.splitlines() if line]
+
+
+def save_meta(
+    out: Path,
+    script: str,
+    table: str,
+    doc: str,
+    started: dt.datetime,
+    load_at_start: list[float],
+    code_at_start: tuple[str, list[str]],
+) -> Path:
+    """meta.json of a measurement: the command (this process's argv), the commit it started on and the
+    files of CODE_PATHS and `script` with uncommitted edits at its start or end (none: the measurement
+    is the commit's; a commit made meanwhile is named as commit_at_end), the machine, the start and
+    end (UTC), and where its table is rendered (`table`) and shown (`doc`)."""
+    commit, dirty = code_at_start
+    commit_at_end, dirty_at_end = code_state(script)
     meta = {
         "command": " ".join(["python", script, *sys.argv[1:]]),
-        "commit": _git("rev-parse", "HEAD").strip(),
-        "uncommitted_code": dirty,
+        "commit": commit,
+        "uncommitted_code": sorted(set(dirty) | set(dirty_at_end)),
+        **({"commit_at_end": commit_at_end} if commit_at_end != commit else {}),
         "started_utc": started.isoformat(timespec="seconds"),
         "ended_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "machine": machine() | {"load_average_at_start": load_at_start},
@@ -138,11 +150,12 @@ class Measurement:
     def __enter__(self) -> Path | None:
         self.started = dt.datetime.now(dt.UTC)
         self.load = [round(x, 2) for x in os.getloadavg()]
+        self.code = code_state(self.script)
         if self.name is not None:
             self.out = data_dir(self.name)
         return self.out
 
     def __exit__(self, exc_type: object, *_: object) -> None:
         if self.out is not None and exc_type is None:
-            save_meta(self.out, self.script, self.table, self.doc, self.started, self.load)
+            save_meta(self.out, self.script, self.table, self.doc, self.started, self.load, self.code)
             print(f"data: {self.out.relative_to(ROOT)}", flush=True)
