@@ -214,3 +214,26 @@ def table_panda(data_dir: Path) -> list[str]:
 
 def table_own_robot(data_dir: Path) -> list[str]:
     return suite_lines("own_robot", saved_runs(data_dir))
+
+
+def table_family(data_dir: Path) -> list[str]:
+    """The manipulation family's summary (benchmarks/family.py): per task, its target budget (the
+    runs' total env steps), the seeds run, each seed's success at the budget, env steps to 50 % and
+    whether every seed reached 95 % within the target."""
+    lines = [
+        "| task | target: every seed at 95 % within | seeds run | success at the budget | env steps to 50 % | every seed at 95 % |",
+        "| --- | ---: | --- | --- | --- | --- |",
+    ]
+    by_task: dict[str, list[Path]] = {}
+    for run_dir in saved_runs(data_dir):
+        by_task.setdefault(json.loads((run_dir / "config.json").read_text())["env_id"], []).append(run_dir)
+    for task, run_dirs in by_task.items():
+        run_dirs = sorted(run_dirs, key=_seed)
+        target = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
+        progress = [read_progress_csv(d) for d in run_dirs]
+        final = ", ".join(f"{rows[-1]['eval_success_rate']:.2f}" for rows in progress)
+        half = ", ".join(_steps(first_reaching(rows, 0.5)[0]) for rows in progress)
+        met = all(first_reaching(rows, 0.95)[0] <= target for rows in progress)
+        seeds = ", ".join(str(_seed(d)) for d in run_dirs)
+        lines.append(f"| `{task}` | {target:,} | {seeds} | {final} | {half} | {'yes' if met else 'no'} |")
+    return lines
