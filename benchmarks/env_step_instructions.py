@@ -8,7 +8,11 @@ difference / 3N: instructions per step, start-up and resets excluded. Instructio
 this one shows what a code change did. OpenBLAS runs single-threaded here: its idle helper threads
 would otherwise add their spinning to the count.
 
-    python benchmarks/env_step_instructions.py [--steps 100]   # needs valgrind; a few minutes
+    python benchmarks/env_step_instructions.py [--steps 100] [--save [NAME]]  # needs valgrind; minutes
+
+--save writes each process's count (env, steps, instructions) to docs/results/benchmarks/NAME/
+(default env-step-instructions) with meta.json (benchmarks/record.py); `table` renders docs/envs.md's
+table from them.
 """
 
 from __future__ import annotations
@@ -20,6 +24,9 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
+
+from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
 
 def run_steps(name: str, steps: int) -> None:
@@ -28,7 +35,9 @@ def run_steps(name: str, steps: int) -> None:
     from env_step import make_env
 
     env = make_env(name)
-    actions = np.random.default_rng(0).uniform(-1, 1, (steps, *env.action_space.shape)).astype(np.float32)
+    actions = (
+        np.random.default_rng(0).uniform(-1, 1, (steps, *(env.action_space.shape or ()))).astype(np.float32)
+    )
     env.reset(seed=0)
     for a in actions:
         _, _, terminated, truncated, _ = env.step(a)
@@ -49,29 +58,58 @@ def instructions(name: str, steps: int) -> int:
     return int(match.group(1).replace(",", ""))
 
 
+def measure(steps: int) -> list[dict[str, Any]]:
+    """One row per process: env (env_step.ENVS' name), steps (N or 4N), instructions."""
+    from env_step import ENVS
+
+    rows = []
+    for name in ENVS:
+        for n in (steps, 4 * steps):
+            rows.append({"env": name, "steps": n, "instructions": instructions(name, n)})
+        print(f"measured {name}", file=sys.stderr, flush=True)
+    return rows
+
+
+def render(rows: list[dict[str, Any]]) -> list[str]:
+    """docs/envs.md's instruction table (markdown lines) from `measure`'s rows (or their CSV strings):
+    per environment, (count at 4N - count at N) / 3N."""
+    per_step, steps = {}, 0
+    for name in dict.fromkeys(r["env"] for r in rows):
+        counts = sorted((int(r["steps"]), int(r["instructions"])) for r in rows if r["env"] == name)
+        (n, short), (n4, long) = counts
+        per_step[name], steps = (long - short) / (n4 - n), n4 - n
+    lines = [
+        f"Instructions per step (callgrind, {steps} random-action steps, start-up excluded):",
+        "",
+        "| environment | instructions per step |",
+        "| --- | ---: |",
+    ]
+    lines += [f"| {name} | {count:,.0f} |" for name, count in per_step.items()]
+    ours, fetch = per_step.values()
+    return lines + ["", f"Ratio FetchReach-v4 / tsrl: {fetch / ours:.2f}x (instructions per step)."]
+
+
+def table(data_dir: Path) -> list[str]:
+    """The table from the data `--save` wrote to `data_dir`."""
+    return render(read_rows(data_dir / DATA_CSV))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=100, help="N: the processes take N and 4N steps")
     parser.add_argument("--child", nargs=2, metavar=("ENV", "STEPS"), help=argparse.SUPPRESS)
+    add_save_argument(parser, "env-step-instructions")
     args = parser.parse_args()
     if args.child:
         run_steps(args.child[0], int(args.child[1]))
         return
     if shutil.which("valgrind") is None:
         sys.exit("valgrind is not installed (Debian: apt-get install valgrind)")
-    n = args.steps
-    from env_step import ENVS
-
-    per_step = {}
-    for name in ENVS:
-        per_step[name] = (instructions(name, 4 * n) - instructions(name, n)) / (3 * n)
-        print(f"measured {name}", file=sys.stderr, flush=True)
-    print(f"\nInstructions per step (callgrind, {3 * n} random-action steps, start-up excluded):\n")
-    print("| environment | instructions per step |\n| --- | ---: |")
-    for name, count in per_step.items():
-        print(f"| {name} | {count:,.0f} |")
-    ours, fetch = per_step.values()
-    print(f"\nratio FetchReach-v4 / tsrl: {fetch / ours:.2f}x (instructions per step)")
+    with Measurement(args.save, __file__, "table", "docs/envs.md") as out:
+        rows = measure(args.steps)
+        if out is not None:
+            write_rows(out / DATA_CSV, rows)
+    print("\n" + "\n".join(render(rows)))
 
 
 if __name__ == "__main__":
