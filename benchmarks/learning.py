@@ -42,8 +42,8 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from fetch_compat import register_fetch_envs
-from learning_tables import PANDA, save_runs, suite_lines
-from record import Measurement, add_save_argument
+from learning_tables import PANDA, save_runs, speed_render, suite_lines
+from record import DATA_CSV, Measurement, add_save_argument, write_rows
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig
 from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
@@ -171,7 +171,7 @@ def record_benchmark_demos(out_dir: Path) -> Path:
 
 def speed(
     seeds: list[int], out_dir: Path, updates: int = 200, fill: int = 1000, env_steps: int = 500
-) -> None:
+) -> list[dict[str, Any]]:
     """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread, per learner option: gradient steps
     per second of `model.train` (batch 256, `updates` steps, after one untimed call) on a buffer of
     `fill` random-action transitions, next to the matrix-multiply floor of the same update, then env
@@ -251,13 +251,8 @@ def speed(
         )
     except ImportError:
         print("sbx not installed: its row is left out")
-    print(
-        f"\nlearner speed, {PICK} fs1, seeds {seeds}: {updates} gradient steps timed (batch {a.batch_size}) on "
-        f"{fill} stored transitions; then {env_steps} env steps with learning"
-    )
-    print(f"{'variant':<38} {'updates/s':>10} {'floor/s':>8} {'of floor':>8} {'env steps/s':>12}")
+    rows = []
     for label, (build, agent_cfg) in variants.items():
-        rates = []
         for seed in seeds:
             cfg = TrainConfig(
                 env_id=PICK, obs="fs1", seed=seed, total_timesteps=fill + 2 * env_steps, agent=agent_cfg
@@ -273,9 +268,19 @@ def speed(
             t1 = time.perf_counter()
             model.learn(env_steps, reset_num_timesteps=False)
             t2 = time.perf_counter()
-            rates.append((updates / (t1 - t0), floor, env_steps / (t2 - t1)))
-        u, f, e = np.mean(rates, axis=0)
-        print(f"{label:<38} {u:>10.1f} {_f(f):>8} {_pct(u / f):>8} {e:>12.1f}", flush=True)
+            rows.append(
+                {
+                    "variant": label,
+                    "seed": seed,
+                    "updates": updates,
+                    "update_s": t1 - t0,
+                    "floor_updates_per_s": floor,
+                    "env_steps": env_steps,
+                    "learn_s": t2 - t1,
+                }
+            )
+            print(f"{label}, seed {seed}: {updates / (t1 - t0):.1f} updates/s", flush=True)
+    return rows
 
 
 def matmul_floor(model: Any, batch_size: int, repeats: int) -> float:
@@ -314,18 +319,6 @@ def matmul_floor(model: Any, batch_size: int, repeats: int) -> float:
     return repeats / (time.perf_counter() - t0)
 
 
-def _pct(x: float) -> str:
-    return "-" if not math.isfinite(x) else f"{x:.0%}"
-
-
-def _i(x: float) -> str:
-    return "never" if not math.isfinite(x) else f"{x:.0f}"
-
-
-def _f(x: float) -> str:
-    return "-" if not math.isfinite(x) else f"{x:.0f}"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -360,7 +353,11 @@ def main() -> None:
         args.save = f"learning-{args.suite}"
 
     if args.suite == "speed":
-        speed(args.seeds or [0], args.out_dir)
+        with Measurement(args.save, __file__, "speed_table", "docs/training.md") as out:
+            rows = speed(args.seeds or [0], args.out_dir)
+            if out is not None:
+                write_rows(out / DATA_CSV, rows)
+        print("\n".join(["", *speed_render(rows)]))
         return
     seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in ("demos", "learner") else [0, 1, 2])
     total, eval_freq, eval_episodes = (

@@ -99,7 +99,7 @@ def _steps(x: float) -> str:
     return "never" if not math.isfinite(x) else f"{x:,.0f}"
 
 
-def _seconds(x: float) -> str:
+def _whole(x: float) -> str:
     return "-" if not math.isfinite(x) else f"{x:.0f}"
 
 
@@ -125,7 +125,7 @@ def group_table(label: str, run_dirs: list[Path], train_time: bool) -> list[str]
         training = last["wall_time_s"] - (0.0 if math.isnan(last["eval_time_s"]) else last["eval_time_s"])
         rate = last["env_steps"] / training if training > 0 else math.nan
         per_seed.append((reached, last["eval_success_rate"], rate))
-        cells = [_steps(s) for s, _ in reached] + [_seconds(w) for _, w in reached]
+        cells = [_steps(s) for s, _ in reached] + [_whole(w) for _, w in reached]
         lines.append(
             f"| {_seed(run_dir)} | {' | '.join(cells)} | {last['eval_success_rate']:.2f} | {rate:.0f} |"
         )
@@ -237,3 +237,30 @@ def table_family(data_dir: Path) -> list[str]:
         seeds = ", ".join(str(_seed(d)) for d in run_dirs)
         lines.append(f"| `{task}` | {target:,} | {seeds} | {final} | {half} | {'yes' if met else 'no'} |")
     return lines
+
+
+def speed_render(rows: list[dict[str, Any]]) -> list[str]:
+    """The learner-speed table (markdown) from `speed`'s rows (or their CSV strings): per variant the
+    mean over seeds of updates/s, the floor, their ratio and env steps/s with learning."""
+    by_variant: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        by_variant.setdefault(str(r["variant"]), []).append(r)
+    lines = [
+        "| variant | updates/s | floor (updates/s) | of floor | env steps/s with learning |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    for label, rs in by_variant.items():
+        u = float(np.mean([float(r["updates"]) / float(r["update_s"]) for r in rs]))
+        f = float(np.mean([float(r["floor_updates_per_s"]) for r in rs]))
+        e = float(np.mean([float(r["env_steps"]) / float(r["learn_s"]) for r in rs]))
+        lines.append(
+            f"| {label} | {u:.1f} | {_whole(f)} | {'-' if not math.isfinite(u / f) else f'{u / f:.0%}'} | {e:.1f} |"
+        )
+    return lines
+
+
+def speed_table(data_dir: Path) -> list[str]:
+    """The learner-speed table from the data `speed --save` wrote."""
+    from record import DATA_CSV, read_rows
+
+    return speed_render(read_rows(data_dir / DATA_CSV))
