@@ -62,7 +62,7 @@ def test_a_perturbation_sweep_writes_its_table_and_plot(run):
     [
         ("latency=1,2", "unknown perturbation key 'latency'; accepted: object_mass"),
         ("observation_noise=0,-0.005", "observation_noise = -0.005; accepted: values >= 0"),
-        ("action_latency=0,50", "randomize.action_latency = 50; accepted: 0 to 49"),
+        ("action_latency=0,50", "randomize.action_latency = [50, 50]; accepted: 0 to 49"),
         ("control_jitter=0.9", "randomize.control_jitter = 0.9; accepted: 0 to 0.5"),
     ],
 )

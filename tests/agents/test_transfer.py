@@ -125,12 +125,12 @@ def test_a_sweep_sets_its_key_and_nothing_else():
     for key in PERTURB_KEYS:
         value = 2.0 if key in (*RANDOMIZE_SCALES, "joint_damping", "action_latency") else 0.01
         r = perturbed(task, key, value).randomize
-        expected = (value, value) if key in (*RANDOMIZE_SCALES, "joint_damping") else value
+        expected = (value, value) if key in (*RANDOMIZE_SCALES, "joint_damping", "action_latency") else value
         assert getattr(r, key) == expected
         others = {f.name for f in dataclasses.fields(r)} - {key}
         assert all(getattr(r, k) == getattr(task.randomize, k) for k in others)
-    assert perturbed(task, "action_latency", 2).randomize.action_latency == 2
-    assert isinstance(perturbed(task, "action_latency", 2).randomize.action_latency, int)
+    assert perturbed(task, "action_latency", 2).randomize.action_latency == (2, 2)  # exactly 2 periods
+    assert all(isinstance(k, int) for k in perturbed(task, "action_latency", 2).randomize.latency_range)
 
 
 def test_sweep_values_are_evaluated_on_the_same_episodes(run):
@@ -162,7 +162,7 @@ def test_bad_perturbations_are_one_line(text, expected):
 @pytest.mark.parametrize(
     ("key", "value", "expected"),
     [
-        ("action_latency", 50, "randomize.action_latency = 50; accepted: 0 to 49"),
+        ("action_latency", 50, "randomize.action_latency = [50, 50]; accepted: 0 to 49"),
         ("observation_noise", 0.2, f"accepted: 0 to {RANDOMIZE_MAGNITUDES['observation_noise']:g}"),
         ("servo_gain", 0, "accepted: scales 0 < low <= high"),
     ],

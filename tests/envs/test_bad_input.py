@@ -56,3 +56,42 @@ def test_physics_blow_up_ends_the_episode_with_a_flag():
     obs, _, _, truncated, info = env.step(np.zeros(3))
     assert truncated and info["physics_unstable"]
     assert all(np.all(np.isfinite(v)) for v in obs.values())
+
+
+def _peg_task_with_hole(tmp_path, inward):
+    """PandaPegInsert-v0 with its fixture's four walls moved `inward` [m] towards the hole's centre."""
+    import re
+    from pathlib import Path
+
+    from tsrl.envs import load_task
+
+    task = load_task("PandaPegInsert-v0")
+    scenes = Path(task.source).parents[2] / "assets" / "scenes"
+    xml = (scenes / "panda_gripper_peg.xml").read_text()
+    xml = xml.replace('file="../panda/', f'file="{scenes.parent}/panda/').replace(
+        'file="table.xml"', f'file="{scenes}/table.xml"'
+    )
+
+    def moved(m):
+        x, y = float(m.group(1)), float(m.group(2))
+        return f'pos="{x - np.sign(x) * inward:.4f} {y - np.sign(y) * inward:.4f} 0.015"'
+
+    xml = re.sub(r'pos="(-?[0-9.]+) (-?[0-9.]+) 0\.015"', moved, xml)
+    (tmp_path / "peg_scene.xml").write_text(xml)
+    text = Path(task.source).read_text().replace('scene = "panda_gripper_peg"', 'scene = "peg_scene.xml"')
+    (tmp_path / "peg.toml").write_text(text)
+    return load_task(tmp_path / "peg.toml")
+
+
+def test_a_hole_smaller_than_the_peg_is_one_line_naming_the_fixture(tmp_path):
+    from tsrl.envs import TaskEnv
+
+    TaskEnv(_peg_task_with_hole(tmp_path, 0.001)).close()  # 1 mm of clearance left: accepted
+    with pytest.raises(
+        InvalidConfig,
+        match=r"peg\.toml: \[\[fixtures\]\] body 'fixture': 'peg' at its goal penetrates it by 1\.0 mm",
+    ) as err:
+        TaskEnv(_peg_task_with_hole(tmp_path, 0.003))  # the hole 2 mm narrower than the peg
+    assert "\n" not in str(err.value) and "accepted: a fixture the object at its goal clears" in str(
+        err.value
+    )

@@ -121,6 +121,17 @@ def test_action_latency_holds_the_first_actions_and_applies_them_late():
         np.testing.assert_array_equal(x["observation"], y["observation"])
 
 
+def test_action_latency_as_a_range_draws_within_it_and_a_pair_fixes_it():
+    fixed, ranged = _env(obs="fs1", action_latency=(2, 2)), _env(obs="fs1", action_latency=(1, 3))
+    drawn = set()
+    for seed in range(30):
+        fixed.reset(seed=seed)
+        ranged.reset(seed=seed)
+        assert len(fixed._perturb._latency) == 2
+        drawn.add(len(ranged._perturb._latency))
+    assert drawn == {1, 2, 3}
+
+
 def test_control_jitter_varies_the_physics_time_per_step():
     env = _env(control_jitter=0.2)
     env.reset(seed=0)
@@ -180,6 +191,10 @@ def test_an_empty_randomize_table_is_the_task_bit_for_bit(tmp_path):
     [
         ("observation_noise = -0.01", "randomize.observation_noise = -0.01; accepted: 0 to 0.1"),
         ("action_latency = 50", "randomize.action_latency = 50; accepted: 0 to 49"),
+        (
+            "action_latency = [3, 1]",
+            "randomize.action_latency = [3, 1]; accepted: 0 to 49 control periods, or [low, high]",
+        ),
         ("servo_gain = [2.0, 0.5]", "randomize.servo_gain = [2, 0.5]; accepted: scales 0 < low <= high"),
         ("tcp_shift = 0.01", "unknown key 'tcp_shift' in [randomize]"),
     ],

@@ -4,7 +4,8 @@ input before stable-baselines3 loads.
 
 The evaluated task is the task as it is (its own `[randomize]` included), with the swept key set:
 a scale key's value v is the range [v, v] (servo_gain = 2: every servo's gains doubled), so is
-joint_damping's (v N m s/rad added); a magnitude key's value is the magnitude (docs/tasks.md).
+joint_damping's (v N m s/rad added) and action_latency's (exactly v control periods, where the
+task's own key draws 0..k); another magnitude key's value is the magnitude (docs/tasks.md).
 """
 
 from __future__ import annotations
@@ -106,7 +107,13 @@ def base_task(env_id: str) -> Task:
 def perturbed(task: Task, key: str, value: float) -> Task:
     """`task` with `[randomize]` key set to `value` (see the module docstring); a value out of the
     key's range (negative, latency of the whole episode, ...) is one line naming it."""
-    setting: Any = (value, value) if key in _RANGE_KEYS else int(value) if key == "action_latency" else value
+    setting: Any = (
+        (value, value)
+        if key in _RANGE_KEYS
+        else (int(value), int(value))  # exactly this many control periods
+        if key == "action_latency"
+        else value
+    )
     try:
         return dataclasses.replace(task, randomize=dataclasses.replace(task.randomize, **{key: setting}))
     except InvalidConfig as err:

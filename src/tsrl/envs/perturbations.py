@@ -125,8 +125,9 @@ class Perturber:
             m.dof_damping[self._dofs] = self._damping + rng.uniform(*r.joint_damping, self._dofs.size)
         if self._tcp_site >= 0:
             m.site_pos[self._tcp_site] = self._tcp_pos + rng.uniform(-r.tcp_offset, r.tcp_offset, 3)
-        if r.action_latency > 0:
-            k = int(rng.integers(0, r.action_latency + 1))
+        low, high = r.latency_range
+        if high > 0:
+            k = int(rng.integers(low, high + 1))
             self._latency = deque(np.zeros(action_dim) for _ in range(k))
         if r.goal_offset > 0:
             offset = rng.uniform(-r.goal_offset, r.goal_offset, 3)

@@ -196,8 +196,9 @@ class Randomize:
         observation_noise: standard deviation of Gaussian noise added to every observation row, in
             the row's units (m, m/s, unitless axis components, ...), drawn every step; rows that read
             a goal marker's orientation carry none (HER replaces them exactly).
-        action_latency: each episode's actions act k control periods late, k uniform in 0..this
-            (the first k steps hold the arm: zero action).
+        action_latency: each episode's actions act k control periods late, k uniform in 0..this,
+            or in low..high for a pair [low, high] ([1, 1]: exactly one period); the first k steps
+            hold the arm (zero action).
         control_jitter: each step's physics substeps vary by uniform +-round(this x substeps).
         goal_offset: the goal markers the policy sees are moved by uniform(-x, x) [m] per axis per
             episode from the true goal (a perception error); info["true_distance"] and
@@ -211,7 +212,7 @@ class Randomize:
     joint_damping: tuple[float, float] = (0.0, 0.0)
     tcp_offset: float = 0.0
     observation_noise: float = 0.0
-    action_latency: int = 0
+    action_latency: int | tuple[int, int] = 0
     control_jitter: float = 0.0
     goal_offset: float = 0.0
 
@@ -219,6 +220,12 @@ class Randomize:
     def active(self) -> bool:
         """Whether anything is perturbed."""
         return self != Randomize()
+
+    @property
+    def latency_range(self) -> tuple[int, int]:
+        """(low, high) control periods of `action_latency`: an integer k is (0, k)."""
+        r = self.action_latency
+        return (0, r) if isinstance(r, int) else r
 
 
 #: Randomize's scale keys, and its magnitude keys with their largest accepted values.
@@ -417,8 +424,17 @@ def _validate_randomize(r: Randomize, episode_steps: int) -> None:
     if not 0 <= low <= high:
         raise InvalidConfig(f"randomize.joint_damping = [{low:g}, {high:g}]; accepted: 0 <= low <= high")
     for key, most in RANDOMIZE_MAGNITUDES.items():
-        value = getattr(r, key)
         most = episode_steps - 1 if most is None else most
+        if key == "action_latency":
+            low, high = r.latency_range
+            if not 0 <= low <= high <= most:
+                given = r.action_latency if isinstance(r.action_latency, int) else f"[{low}, {high}]"
+                raise InvalidConfig(
+                    f"randomize.action_latency = {given}; accepted: 0 to {most} control periods, "
+                    f"or [low, high] with 0 <= low <= high <= {most}"
+                )
+            continue
+        value = getattr(r, key)
         if not 0 <= value <= most:
             raise InvalidConfig(f"randomize.{key} = {value:g}; accepted: 0 to {most:g}")
 
