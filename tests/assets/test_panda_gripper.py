@@ -197,6 +197,7 @@ def test_the_arm_is_the_suction_models_arm(arm):
         suction.site_pos[name_to_id(suction, "site", "flange")],
     )
     assert gripper.opt.timestep == suction.opt.timestep and gripper.opt.integrator == suction.opt.integrator
+    np.testing.assert_array_equal(gripper.exclude_signature, suction.exclude_signature)  # base link
     # the same arm, the cup's body and actuator gone: the hand's 3 bodies, 7 geoms, 2 joints, 1 servo
     assert gripper.nbody == suction.nbody - 1 + 3 and gripper.ngeom == suction.ngeom - 2 + 4
     assert gripper.njnt == suction.njnt + 2 and gripper.nu == suction.nu
