@@ -86,7 +86,8 @@ def test_robot_from_a_urdf_file_with_a_body_as_tcp(tmp_path):
 
 def test_bad_descriptions_are_named(tmp_path):
     with pytest.raises(
-        UnknownName, match=r"unknown robot 'ur10'; built-in robots: .*ur5e \(or a robot's .toml file\)"
+        UnknownName,
+        match=r"unknown robot 'ur10'; built-in robots: .*ur5e, ur5e_gripper \(or a robot's .toml file\)",
     ):
         load_robot("ur10")
     (tmp_path / "bad.toml").write_text(

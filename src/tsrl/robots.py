@@ -88,7 +88,7 @@ class Robot:
     (tsrl.robot_model.arm_base)."""
     gripper: str | None = None
     """Gripper servo, if the arm has a parallel-jaw gripper: a position actuator whose control is the
-    target opening width [m] (in `panda_gripper`, a fixed tendon over the two coupled finger joints,
+    target opening width [m] (in `panda_gripper` and `ur5e_gripper`, a fixed tendon over the two coupled finger joints,
     force-limited to the rated grasp force); `gripperWidth(<gripper>)` reads the width."""
 
     def __post_init__(self) -> None:
@@ -292,6 +292,15 @@ ROBOTS: dict[str, Robot] = {
         home=panda.HOME_KEY,
         actuators=panda.JOINT_NAMES,
         gripper=panda.GRIPPER_ACTUATOR,
+    ),
+    "ur5e_gripper": Robot(
+        name="ur5e_gripper",
+        model="ur5e_gripper",
+        joints=ur5e.JOINT_NAMES,
+        tcp=ur5e.TCP_SITE,
+        home=ur5e.HOME_KEY,
+        actuators=ur5e.JOINT_NAMES,
+        gripper=panda.GRIPPER_ACTUATOR,  # the Franka Hand's servo (tsrl.assets.panda)
     ),
 }
 

@@ -59,26 +59,27 @@ def test_physics_blow_up_ends_the_episode_with_a_flag():
 
 
 def _peg_task_with_hole(tmp_path, inward):
-    """PandaPegInsert-v0 with its fixture's four walls moved `inward` [m] towards the hole's centre."""
+    """PandaPegInsert-v0 with its fixture's four walls moved `inward` [m] towards the hole's centre: a
+    copy of the scenes and the Panda's files (MJCF resolves nested includes from the main file's folder)."""
     import re
+    import shutil
     from pathlib import Path
 
     from tsrl.envs import load_task
 
     task = load_task("PandaPegInsert-v0")
-    scenes = Path(task.source).parents[2] / "assets" / "scenes"
-    xml = (scenes / "panda_gripper_peg.xml").read_text()
-    xml = xml.replace('file="../panda/', f'file="{scenes.parent}/panda/').replace(
-        'file="table.xml"', f'file="{scenes}/table.xml"'
-    )
+    assets = Path(task.source).parents[2] / "assets"
+    for folder in ("scenes", "panda"):
+        shutil.copytree(assets / folder, tmp_path / folder, dirs_exist_ok=True)  # afresh each call
+    parts = tmp_path / "scenes" / "peg_insert.xml"
 
     def moved(m):
         x, y = float(m.group(1)), float(m.group(2))
         return f'pos="{x - np.sign(x) * inward:.4f} {y - np.sign(y) * inward:.4f} 0.015"'
 
-    xml = re.sub(r'pos="(-?[0-9.]+) (-?[0-9.]+) 0\.015"', moved, xml)
-    (tmp_path / "peg_scene.xml").write_text(xml)
-    text = Path(task.source).read_text().replace('scene = "panda_gripper_peg"', 'scene = "peg_scene.xml"')
+    parts.write_text(re.sub(r'pos="(-?[0-9.]+) (-?[0-9.]+) 0\.015"', moved, parts.read_text()))
+    text = Path(task.source).read_text()
+    text = text.replace('scene = "panda_gripper_peg"', 'scene = "scenes/panda_gripper_peg.xml"')
     (tmp_path / "peg.toml").write_text(text)
     return load_task(tmp_path / "peg.toml")
 

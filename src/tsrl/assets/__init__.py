@@ -24,6 +24,8 @@ SCENES: dict[str, str] = {
     "panda_gripper_pick_place": "scenes/panda_gripper_pick_place.xml",
     "panda_gripper_stack": "scenes/panda_gripper_stack.xml",
     "panda_gripper_peg": "scenes/panda_gripper_peg.xml",
+    "ur5e_gripper": "ur5e/ur5e_gripper.xml",
+    "ur5e_gripper_peg": "scenes/ur5e_gripper_peg.xml",
 }
 
 

@@ -100,7 +100,7 @@ MAX_JOINT_TORQUES = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 #: Suction cup tip (site `tcp`) along the flange z axis [m] (the same cup as the UR5e's).
 TCP_OFFSET = 0.07
 
-# -- The Franka Hand (panda/panda_gripper.xml; sources in assets/panda/README.md) ----------------------
+# -- The Franka Hand (panda/hand*.xml, on the Panda and the UR5e; sources in assets/panda/README.md) -----
 
 #: Mass [kg] of the hand with its fingers (Franka).
 HAND_MASS = 0.73

@@ -64,3 +64,12 @@ MAX_JOINT_TORQUES = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
 
 #: Suction cup tip (site `tcp`) along the flange z axis [m].
 TCP_OFFSET = 0.07
+
+# -- The UR5e with the Franka Hand (ur5e/ur5e_gripper.xml; the hand's facts: tsrl.assets.panda) -----------
+
+#: The hand's turn about the flange z axis [rad]: none, so the fingers open along the flange's y axis
+#: (world +x at HOME_Q) and the TCP frame at home is the suction UR5e's (x along world +y, z down).
+GRIPPER_HAND_YAW = 0.0
+#: TCP position [m] at HOME_Q with the hand (keyframe `home` of ur5e_gripper.xml, fingers open): the cup's
+#: tip moved down by the hand's TCP offset minus the cup's, 0.1034 m - 0.07 m.
+GRIPPER_HOME_TCP = np.array([-0.4919, -0.1333, 0.3845])

@@ -460,6 +460,7 @@ SOLVERS: dict[str, type[Solver]] = {
     "PandaPickPlaceGripper-v0": GripperPickPlaceSolver,
     "PandaStack-v0": StackSolver,
     "PandaPegInsert-v0": PegInsertSolver,
+    "UR5ePegInsert-v0": PegInsertSolver,
 }
 
 

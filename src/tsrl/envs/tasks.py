@@ -342,6 +342,7 @@ BUILTIN_TASKS: dict[str, str] = {
     "PandaPickPlaceGripper-v0": "panda_pick_place_gripper.toml",
     "PandaStack-v0": "panda_stack.toml",
     "PandaPegInsert-v0": "panda_peg_insert.toml",
+    "UR5ePegInsert-v0": "ur5e_peg_insert.toml",
 }
 
 
