@@ -126,9 +126,11 @@ def report(root: Path, task: str) -> None:
     first = m[ROWS[0], BASELINE]
     steps = first["steps"]
     print(f"## Reach {task}\n")
+    gaps = set(np.diff(steps).tolist())
+    grid = f"every {gaps.pop()}" if len(gaps) == 1 else "unevenly spaced"
     print(
         f"Seeds per cell: {len(first['seeds'])} ({', '.join(map(str, first['seeds']))}); "
-        f"{len(steps)} evaluations common to every cell (0 to {steps[-1]:,} env steps, every {steps[1] - steps[0]}).\n"
+        f"{len(steps)} evaluations common to every cell (0 to {steps[-1]:,} env steps, {grid}).\n"
     )
     print("| HER | arm | AUC, IQM [95%] | final success, IQM [95%] |")
     print("| --- | --- | --- | --- |")
