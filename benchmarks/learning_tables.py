@@ -75,7 +75,8 @@ def run_label(config: dict[str, Any]) -> str:
     paper's agent (demonstrations, learner), from its config.json."""
     agent = config["agent"]
     obs = config["obs"] if len(config["obs"]) <= 12 else "the task's own"
-    label = f"{config['env_id']}, obs {obs}, action {config['action']}, {agent['algo'].upper()} + HER ({agent['her']['relabel']})"
+    env = Path(config["env_id"]).name if config["env_id"].endswith(".toml") else config["env_id"]
+    label = f"{env}, obs {obs}, action {config['action']}, {agent['algo'].upper()} + HER ({agent['her']['relabel']})"
     demos = agent.get("demos") or {}
     if demos.get("path") and demos.get("batch_share", 0) > 0 and demos.get("bc_weight", 0) > 0:
         label += f", {Path(demos['path']).name} (share {demos['batch_share']}, BC {demos['bc_weight']})"
