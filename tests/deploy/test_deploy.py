@@ -94,7 +94,8 @@ def test_a_contract_of_another_major_version_is_refused(trained_export, tmp_path
     assert "tsrl_version 9.0.0 (major 9)" in err and "export the run again" in err
 
 
-def test_bad_deploy_options_are_one_line(trained_export, capsys):
+def test_bad_deploy_options_are_one_line(trained_export, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default log, deploy.jsonl, would go here: nothing may be written
     assert main(["deploy", str(trained_export), "--backend", "ur"]) == 2
     assert "--backend ur needs --address" in one_error_line(capsys)
     assert main(["deploy", str(trained_export), "--goal", "0.1,x"]) == 2
@@ -105,6 +106,7 @@ def test_bad_deploy_options_are_one_line(trained_export, capsys):
     assert "needs EXPORT_DIR" in one_error_line(capsys)
     assert main(["deploy", str(trained_export), "--backend", "ur", "--address", "192.0.2.1"]) == 2
     assert "pip install 'tsrl[ur]'" in one_error_line(capsys)  # ur-rtde is not installed here
+    assert list(tmp_path.iterdir()) == []  # no log of a deployment that never connected
 
 
 def test_export_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):

@@ -59,10 +59,10 @@ class DeployLog:
 
     def __init__(self, path: Path | str, header: dict[str, Any]):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        # Open across the episodes, flushed after every record (a crash keeps what was logged); close().
-        self._file: IO[str] = open(self.path, "w")  # noqa: SIM115
-        self._write({"type": "header", **header})
+        self._header = {"type": "header", **header}
+        # Opened with the first episode's start (a backend that never connects leaves no file), then
+        # open across the episodes, flushed after every record (a crash keeps what was logged); close().
+        self._file: IO[str] | None = None
 
     def start(self, episode: int, seed: int | None, t: float, q: np.ndarray, goal: np.ndarray) -> None:
         """An episode's start: the controller's reset at time t from joint positions q with the goal."""
@@ -98,9 +98,14 @@ class DeployLog:
         )
 
     def close(self) -> None:
-        self._file.close()
+        if self._file is not None:
+            self._file.close()
 
     def _write(self, record: dict[str, Any]) -> None:
+        if self._file is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(self.path, "w")  # noqa: SIM115
+            self._file.write(json.dumps(self._header, default=_jsonable) + "\n")
         self._file.write(json.dumps(record, default=_jsonable) + "\n")
         self._file.flush()
 
