@@ -225,19 +225,30 @@ def _start_long_experiment(tmp_path: Path, agent: str = "") -> tuple[subprocess.
     proc = subprocess.Popen(
         [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
          "--workers", "1", "--no-report"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
-    deadline = time.monotonic() + 180
+    deadline = time.monotonic() + 600
     while not ((run_dirs[0] / "progress.csv").is_file() and progress(run_dirs[0])):
         assert proc.poll() is None and time.monotonic() < deadline, "the first run never evaluated"
         time.sleep(0.05)
     return proc, run_dirs
 
 
+def _communicate(proc: subprocess.Popen) -> str:
+    """The process's stderr once it has exited; killed (with its workers' process group) if it has not
+    within a generous bound, so that a failing test leaves no experiment running."""
+    try:
+        return proc.communicate(timeout=600)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)  # its own session (start_new_session): it and its workers
+            proc.communicate()
+
+
 def test_a_ctrl_c_asks_the_running_runs_to_checkpoint_and_starts_no_other(tmp_path):
     proc, (first, second) = _start_long_experiment(tmp_path)
     proc.send_signal(signal.SIGINT)
-    _, stderr = proc.communicate(timeout=180)
+    stderr = _communicate(proc)
     lines = stderr.splitlines()
     assert proc.returncode == 128 + signal.SIGINT, stderr
     assert (
@@ -258,7 +269,7 @@ def test_a_second_ctrl_c_ends_the_running_runs_at_once(tmp_path):
     while not proc.stderr.readline().startswith("stopping: 1 running run(s)"):
         assert proc.poll() is None
     proc.send_signal(signal.SIGINT)
-    _, stderr = proc.communicate(timeout=60)
+    stderr = _communicate(proc)
     assert proc.returncode == 128 + signal.SIGINT, stderr
     assert stderr.splitlines()[-1] == "tsrl experiment: interrupted; run it again to resume"
     assert checkpoint_at(first) == 0 and not second.exists()
