@@ -353,7 +353,9 @@ def main() -> None:
         args.save = f"learning-{args.suite}"
 
     if args.suite == "speed":
-        with Measurement(args.save, __file__, "speed_table", "docs/training.md") as out:
+        with Measurement(
+            args.save, __file__, "benchmarks/learning_tables.py:speed_table", "docs/training.md"
+        ) as out:
             rows = speed(args.seeds or [0], args.out_dir)
             if out is not None:
                 write_rows(out / DATA_CSV, rows)
