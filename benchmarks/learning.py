@@ -15,6 +15,9 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
                                            # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
+    python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
+                                           # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
+                                           # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
     python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
@@ -51,7 +54,12 @@ from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 PICK = "tsrl/UR5ePickPlace-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
-BUDGETS = {"demos": (50_000, 2_500, 100), "learner": (15_000, 2_500, 100), "own-robot": (10_000, 250, 20)}
+BUDGETS = {
+    "demos": (50_000, 2_500, 100),
+    "learner": (15_000, 2_500, 100),
+    "learner-reach": (3_000, 100, 20),
+    "own-robot": (10_000, 250, 20),
+}
 BUDGET = (6_000, 200, 20)
 #: The demos suite's demonstrations: the scripted controller's, recorded once (seed 0, successes only).
 DEMO_EPISODES = 100
@@ -63,7 +71,13 @@ WITHOUT: dict[str, dict[str, Any]] = {
     "resets": {"demos": {"reset_prob": 0.0}},
 }
 #: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
-SUITE_TABLES = {"demos": "train", "learner": "train", "panda": "panda", "own-robot": "own_robot"}
+SUITE_TABLES = {
+    "demos": "train",
+    "learner": "train",
+    "learner-reach": "reach_target",
+    "panda": "panda",
+    "own-robot": "own_robot",
+}
 #: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
 OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch_reach.toml"
 
@@ -91,6 +105,12 @@ def configs(
         assert demos is not None
         agent = learner_agent(demos, without)
         return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
+    if suite == "learner-reach":  # issue 27's reach target: the fast preset (no demonstrations) vs paper
+        return [
+            TrainConfig(obs="fs1", seed=s, agent=agent, **common)
+            for agent in (AgentConfig(learner="fast"), AgentConfig())
+            for s in seeds
+        ]
     if suite == "demos":
         assert demos is not None
         with_demos = AgentConfig(demos=DemoConfig(path=str(demos)))
@@ -324,7 +344,19 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument(
-        "suite", choices=["tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner"]
+        "suite",
+        choices=[
+            "tsrl",
+            "fetch",
+            "her",
+            "all",
+            "demos",
+            "panda",
+            "speed",
+            "own-robot",
+            "learner",
+            "learner-reach",
+        ],
     )
     parser.add_argument(
         "--without",
@@ -361,7 +393,9 @@ def main() -> None:
                 write_rows(out / DATA_CSV, rows)
         print("\n".join(["", *speed_render(rows)]))
         return
-    seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in ("demos", "learner") else [0, 1, 2])
+    seeds = args.seeds or (
+        [0, 1, 2, 3, 4] if args.suite in ("demos", "learner", "learner-reach") else [0, 1, 2]
+    )
     total, eval_freq, eval_episodes = (
         given if given is not None else default
         for given, default in zip(

@@ -23,6 +23,8 @@ PANDA = "tsrl/PandaReach-v0"
 UR5E = "tsrl/UR5eReach-v0"
 #: The own-robot target: every seed at this evaluation success within the budget.
 OWN_ROBOT_TARGET = 0.9
+#: Issue 27's reach target: every seed at 95 % evaluation success within this many env steps.
+REACH_TARGET_STEPS = 1_000
 
 
 def read_progress_csv(run_dir: Path) -> list[dict[str, float]]:
@@ -187,11 +189,15 @@ def every_seed_reaches(run_dirs: list[Path], threshold: float, budget: int) -> l
 
 def suite_lines(kind: str, run_dirs: list[Path]) -> list[str]:
     """A suite's tables and verdict lines: `kind` "wall" (seconds include the evaluations), "train"
-    (training seconds), "panda" (wall, and the Panda-within-twice-the-UR5e verdict) or "own_robot"
-    (wall, and whether every seed reached OWN_ROBOT_TARGET within its budget)."""
+    (training seconds), "panda" (wall, and the Panda-within-twice-the-UR5e verdict), "own_robot"
+    (wall, and whether every seed reached OWN_ROBOT_TARGET within its budget) or "reach_target" (wall,
+    and per group whether every seed reached 95 % within REACH_TARGET_STEPS)."""
     lines = tables(run_dirs, train_time=kind == "train")
     if kind == "panda":
         lines += ["", *panda_within_twice_ur5e(run_dirs)]
+    if kind == "reach_target":
+        for label, dirs in grouped(run_dirs).items():
+            lines += ["", f"{label}: {every_seed_reaches(dirs, 0.95, REACH_TARGET_STEPS)[0]}"]
     if kind == "own_robot":
         budget = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
         lines += ["", *every_seed_reaches(run_dirs, OWN_ROBOT_TARGET, budget)]
@@ -211,6 +217,10 @@ def table_train(data_dir: Path) -> list[str]:
 
 def table_panda(data_dir: Path) -> list[str]:
     return suite_lines("panda", saved_runs(data_dir))
+
+
+def table_reach_target(data_dir: Path) -> list[str]:
+    return suite_lines("reach_target", saved_runs(data_dir))
 
 
 def table_own_robot(data_dir: Path) -> list[str]:
