@@ -27,3 +27,13 @@ def run_tsrl(*args: str, cwd: Path = REPO, timeout: float = 180) -> subprocess.C
         cwd=cwd,
         timeout=timeout,
     )
+
+
+#: `python -m tsrl.cli` with Ctrl-C (SIGINT) handled as by default: a process started in the
+#: background by a non-interactive shell (`make test &`, nohup) ignores SIGINT, its children inherit
+#: that and Python then leaves it ignored, so the Ctrl-C tests would send a signal no one receives.
+_WITH_CTRL_C = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "sys.argv[0] = 'tsrl'; runpy.run_module('tsrl.cli', run_name='__main__', alter_sys=True)"
+)
+TSRL_WITH_CTRL_C = [sys.executable, "-c", _WITH_CTRL_C]

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runner import REPO, run_tsrl
+from cli_runner import REPO, TSRL_WITH_CTRL_C, run_tsrl
 
 from tsrl.agents.demo_files import load_demos, sha256
 from tsrl.agents.run_folder import check_not_locked, latest_checkpoint, read_state
@@ -223,11 +223,11 @@ def _start_long_experiment(tmp_path: Path, agent: str = "") -> tuple[subprocess.
     definition.write_text(LONG + agent)
     run_dirs = [tmp_path / "results" / "long" / c.run_name for c in load_experiment(definition).runs()]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
+        [*TSRL_WITH_CTRL_C, "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
          "--workers", "1", "--no-report"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
-    deadline = time.monotonic() + 600
+    deadline = time.monotonic() + 180
     while not ((run_dirs[0] / "progress.csv").is_file() and progress(run_dirs[0])):
         assert proc.poll() is None and time.monotonic() < deadline, "the first run never evaluated"
         time.sleep(0.05)
@@ -235,10 +235,10 @@ def _start_long_experiment(tmp_path: Path, agent: str = "") -> tuple[subprocess.
 
 
 def _communicate(proc: subprocess.Popen) -> str:
-    """The process's stderr once it has exited; killed (with its workers' process group) if it has not
-    within a generous bound, so that a failing test leaves no experiment running."""
+    """The process's stderr once it has exited; killed with its workers (its own session) if it has not
+    within 180 s, so that a failing test leaves no experiment running."""
     try:
-        return proc.communicate(timeout=600)[1]
+        return proc.communicate(timeout=180)[1]
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)  # its own session (start_new_session): it and its workers
