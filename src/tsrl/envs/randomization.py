@@ -17,7 +17,6 @@ from .goals import Goal, goal_positions
 from .scenes import TARGET_BODY
 from .tasks import ObjectSampler, ObstacleSampler, OrientationSampler, PositionSampler, Task
 
-
 #: Penetration [m] of the goal's object into a fixture, at the goal, beyond which the task is refused.
 FIXTURE_PENETRATION_TOLERANCE = 1e-4
 
