@@ -18,6 +18,8 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
                                            # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
+    python benchmarks/learning.py learner-obstacle  # the same two on tsrl/UR5eObstacleReach-v1 (fs1): 5
+                                           # seeds, 8,000 env steps, eval every 500 on 50 episodes; IQM of AUC
     python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
@@ -53,11 +55,13 @@ from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
 from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 PICK = "tsrl/UR5ePickPlace-v0"
+OBSTACLE = "tsrl/UR5eObstacleReach-v1"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
 BUDGETS = {
     "demos": (50_000, 2_500, 100),
     "learner": (15_000, 2_500, 100),
     "learner-reach": (3_000, 100, 20),
+    "learner-obstacle": (8_000, 500, 50),
     "own-robot": (10_000, 250, 20),
 }
 BUDGET = (6_000, 200, 20)
@@ -75,6 +79,7 @@ SUITE_TABLES = {
     "demos": "train",
     "learner": "train",
     "learner-reach": "reach_target",
+    "learner-obstacle": "auc",
     "panda": "panda",
     "own-robot": "own_robot",
 }
@@ -105,6 +110,12 @@ def configs(
         assert demos is not None
         agent = learner_agent(demos, without)
         return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
+    if suite == "learner-obstacle":  # issue 27's "nothing lost elsewhere" on the obstacle reach
+        return [
+            TrainConfig(env_id=OBSTACLE, obs="fs1", seed=s, agent=agent, **common)
+            for agent in (AgentConfig(learner="fast"), AgentConfig())
+            for s in seeds
+        ]
     if suite == "learner-reach":  # issue 27's reach target: the fast preset (no demonstrations) vs paper
         return [
             TrainConfig(obs="fs1", seed=s, agent=agent, **common)

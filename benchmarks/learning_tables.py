@@ -198,9 +198,36 @@ def suite_lines(kind: str, run_dirs: list[Path]) -> list[str]:
     if kind == "reach_target":
         for label, dirs in grouped(run_dirs).items():
             lines += ["", f"{label}: {every_seed_reaches(dirs, 0.95, REACH_TARGET_STEPS)[0]}"]
+    if kind == "auc":
+        lines += ["", *auc_comparison(run_dirs)]
     if kind == "own_robot":
         budget = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
         lines += ["", *every_seed_reaches(run_dirs, OWN_ROBOT_TARGET, budget)]
+    return lines
+
+
+def auc_comparison(run_dirs: list[Path]) -> list[str]:
+    """Per group the IQM of the seeds' AUC (normalised area under the success curve over the
+    evaluations every seed has) with its 95% stratified-bootstrap interval and, for two groups of the
+    fast and paper learners, fast's IQM minus paper's with its interval (tsrl.experiments.statistics,
+    rliable's estimators)."""
+    from tsrl.experiments import statistics as st
+
+    lines = ["| group | seeds | AUC, IQM [95%] |", "| --- | ---: | --- |"]
+    by_learner = {}
+    for label, dirs in grouped(run_dirs).items():
+        curves = [read_progress_csv(d) for d in dirs]
+        steps = sorted(set.intersection(*({r["env_steps"] for r in c} for c in curves)))
+        success = np.array(
+            [[{r["env_steps"]: r["eval_success_rate"] for r in c}[s] for s in steps] for c in curves]
+        )
+        auc = st.area_under_curve(np.array(steps), success)
+        e = st.iqm_interval(auc)
+        by_learner[json.loads((dirs[0] / "config.json").read_text())["agent"].get("learner", "paper")] = auc
+        lines.append(f"| {label} | {len(dirs)} | {e.point[0]:.2f} [{e.low[0]:.2f}, {e.high[0]:.2f}] |")
+    if set(by_learner) == {"fast", "paper"}:
+        d = st.iqm_difference(by_learner["fast"], by_learner["paper"])
+        lines += ["", f"fast minus paper, AUC IQM: {d.point[0]:+.3f} [{d.low[0]:+.3f}, {d.high[0]:+.3f}]."]
     return lines
 
 
@@ -221,6 +248,10 @@ def table_panda(data_dir: Path) -> list[str]:
 
 def table_reach_target(data_dir: Path) -> list[str]:
     return suite_lines("reach_target", saved_runs(data_dir))
+
+
+def table_auc(data_dir: Path) -> list[str]:
+    return suite_lines("auc", saved_runs(data_dir))
 
 
 def table_own_robot(data_dir: Path) -> list[str]:
