@@ -367,6 +367,7 @@ def main() -> None:
             "own-robot",
             "learner",
             "learner-reach",
+            "learner-obstacle",
         ],
     )
     parser.add_argument(
