@@ -406,7 +406,9 @@ def main() -> None:
         print("\n".join(["", *speed_render(rows)]))
         return
     seeds = args.seeds or (
-        [0, 1, 2, 3, 4] if args.suite in ("demos", "learner", "learner-reach") else [0, 1, 2]
+        [0, 1, 2, 3, 4]
+        if args.suite in ("demos", "learner", "learner-reach", "learner-obstacle")
+        else [0, 1, 2]
     )
     total, eval_freq, eval_episodes = (
         given if given is not None else default
