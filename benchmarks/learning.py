@@ -74,6 +74,12 @@ WITHOUT: dict[str, dict[str, Any]] = {
     "symmetric": {"demos": {"batch_share": 0.125}},
     "resets": {"demos": {"reset_prob": 0.0}},
 }
+#: The suites of the command line, and those that run 5 seeds by default (the others 3).
+SUITES = (
+    "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-reach",
+    "learner-obstacle",
+)  # fmt: skip
+FIVE_SEED_SUITES = ("demos", "learner", "learner-reach", "learner-obstacle")
 #: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
 SUITE_TABLES = {
     "demos": "train",
@@ -356,19 +362,7 @@ def main() -> None:
     )
     parser.add_argument(
         "suite",
-        choices=[
-            "tsrl",
-            "fetch",
-            "her",
-            "all",
-            "demos",
-            "panda",
-            "speed",
-            "own-robot",
-            "learner",
-            "learner-reach",
-            "learner-obstacle",
-        ],
+        choices=SUITES,
     )
     parser.add_argument(
         "--without",
@@ -405,11 +399,7 @@ def main() -> None:
                 write_rows(out / DATA_CSV, rows)
         print("\n".join(["", *speed_render(rows)]))
         return
-    seeds = args.seeds or (
-        [0, 1, 2, 3, 4]
-        if args.suite in ("demos", "learner", "learner-reach", "learner-obstacle")
-        else [0, 1, 2]
-    )
+    seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in FIVE_SEED_SUITES else [0, 1, 2])
     total, eval_freq, eval_episodes = (
         given if given is not None else default
         for given, default in zip(

@@ -15,7 +15,7 @@ from ..robots import BoundRobot
 from ..taskmaps import parse_spec
 from .goals import Goal, goal_positions
 from .scenes import TARGET_BODY
-from .tasks import ObjectSampler, ObstacleSampler, OrientationSampler, PositionSampler, Task
+from .tasks import FixtureSampler, ObjectSampler, ObstacleSampler, OrientationSampler, PositionSampler, Task
 
 #: Penetration [m] of the goal's object into a fixture, at the goal, beyond which the task is refused.
 FIXTURE_PENETRATION_TOLERANCE = 1e-4
@@ -25,32 +25,32 @@ def _check_fixture_clears_goal(
     model: mujoco.MjModel,
     task: Task,
     goal: Goal,
-    fixture: str,
+    fixture: FixtureSampler,
     mocap: int,
+    object_qpos: dict[str, int],
     orientation: tuple[OrientationSampler, np.ndarray] | None,
 ) -> None:
     """Refuses a fixture that the goal's first object cannot stand in at its goal (a hole smaller
     than the peg): with the object at the goal box's centre in the goal's nominal orientation and the
     fixture at its offset from there, no contact between their geoms may be deeper than
-    FIXTURE_PENETRATION_TOLERANCE."""
+    FIXTURE_PENETRATION_TOLERANCE. `object_qpos`: each object's free-joint qpos address."""
     frame = goal.parts[0].frame
-    if frame not in {o.body for o in task.objects}:
+    if frame not in object_qpos:
         return
-    body = name_to_id(model, "body", frame)
-    adr = int(model.jnt_qposadr[model.body_jntadr[body]])
+    adr = object_qpos[frame]
     data = mujoco.MjData(model)
     center = np.array(task.goal.position.center, dtype=np.float64)
     quat = orientation[1] if orientation is not None else np.array([1.0, 0.0, 0.0, 0.0])
     data.qpos[adr : adr + 7] = [*center, *quat]
-    data.mocap_pos[mocap] = center + np.array(next(f.offset for f in task.fixtures if f.body == fixture))
+    data.mocap_pos[mocap] = center + np.array(fixture.offset)
     mujoco.mj_forward(model, data)
-    fixture_body = name_to_id(model, "body", fixture)
+    body, fixture_body = name_to_id(model, "body", frame), name_to_id(model, "body", fixture.body)
     for c in data.contact[: data.ncon]:
         bodies = {int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])}
         if bodies == {body, fixture_body} and c.dist < -FIXTURE_PENETRATION_TOLERANCE:
             names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in (c.geom1, c.geom2)]
             raise InvalidConfig(
-                f"{task.source or task.name}: [[fixtures]] body {fixture!r}: {frame!r} at its goal "
+                f"{task.source or task.name}: [[fixtures]] body {fixture.body!r}: {frame!r} at its goal "
                 f"penetrates it by {-c.dist * 1000:.1f} mm (geoms {names[0]!r} and {names[1]!r}: a hole "
                 f"smaller than the object?); accepted: a fixture the object at its goal clears"
             )
@@ -89,7 +89,8 @@ class Randomizer:
             if mocap < 0:
                 raise InvalidConfig(f'fixture body {fixture.body!r} must be a mocap body (mocap="true")')
             self._fixtures.append((mocap, np.array(fixture.offset, dtype=np.float64)))
-            _check_fixture_clears_goal(model, task, goal, fixture.body, mocap, self._orientation)
+            objects = {obj.body: adr for adr, obj in self._objects}
+            _check_fixture_clears_goal(model, task, goal, fixture, mocap, objects, self._orientation)
         self._obstacle: _Obstacle | None = None
         if task.obstacle is not None:
             o = task.obstacle
