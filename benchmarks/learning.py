@@ -20,6 +20,8 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
     python benchmarks/learning.py learner-obstacle  # the same two on tsrl/UR5eObstacleReach-v1 (fs1): 5
                                            # seeds, 8,000 env steps, eval every 500 on 50 episodes; IQM of AUC
+    python benchmarks/learning.py learner-pose  # the same two on tsrl/UR5ePoseReach-v0 (its own fs2 and
+                                           # pose action): 5 seeds, 25,000 env steps, eval every 2,500 on 50
     python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
@@ -56,12 +58,14 @@ from tsrl.agents.run_folder import latest_checkpoint, read_state
 
 PICK = "tsrl/UR5ePickPlace-v0"
 OBSTACLE = "tsrl/UR5eObstacleReach-v1"
+POSE = "tsrl/UR5ePoseReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
 BUDGETS = {
     "demos": (50_000, 2_500, 100),
     "learner": (15_000, 2_500, 100),
     "learner-reach": (3_000, 100, 20),
     "learner-obstacle": (8_000, 500, 50),
+    "learner-pose": (25_000, 2_500, 50),
     "own-robot": (10_000, 250, 20),
 }
 BUDGET = (6_000, 200, 20)
@@ -77,15 +81,16 @@ WITHOUT: dict[str, dict[str, Any]] = {
 #: The suites of the command line, and those that run 5 seeds by default (the others 3).
 SUITES = (
     "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-reach",
-    "learner-obstacle",
+    "learner-obstacle", "learner-pose",
 )  # fmt: skip
-FIVE_SEED_SUITES = ("demos", "learner", "learner-reach", "learner-obstacle")
+FIVE_SEED_SUITES = ("demos", "learner", "learner-reach", "learner-obstacle", "learner-pose")
 #: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
 SUITE_TABLES = {
     "demos": "train",
     "learner": "train",
     "learner-reach": "reach_target",
     "learner-obstacle": "auc",
+    "learner-pose": "auc",
     "panda": "panda",
     "own-robot": "own_robot",
 }
@@ -119,6 +124,12 @@ def configs(
     if suite == "learner-obstacle":  # issue 27's "nothing lost elsewhere" on the obstacle reach
         return [
             TrainConfig(env_id=OBSTACLE, obs="fs1", seed=s, agent=agent, **common)
+            for agent in (AgentConfig(learner="fast"), AgentConfig())
+            for s in seeds
+        ]
+    if suite == "learner-pose":  # the same on the pose reach, with the task's own observation and action
+        return [
+            TrainConfig(env_id=POSE, obs="fs2", action=TASK_ACTION, seed=s, agent=agent, **common)
             for agent in (AgentConfig(learner="fast"), AgentConfig())
             for s in seeds
         ]
@@ -175,9 +186,12 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
     cfg, out_dir = args
     if cfg.env_id.startswith("Fetch"):
         register_fetch_envs()
-    parent = out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place", PANDA: "panda-reach"}.get(
-        cfg.env_id, "own-robot" if cfg.is_task_file else "reach"
-    )
+    parent = out_dir / {
+        "FetchReach-v4": "fetch",
+        PICK: "pick-place",
+        PANDA: "panda-reach",
+        POSE: "pose-reach",
+    }.get(cfg.env_id, "own-robot" if cfg.is_task_file else "reach")
     return train_or_resume(cfg, parent)
 
 
