@@ -5,6 +5,7 @@ reached 95 % within the task's target budget.
 
     python benchmarks/family.py                      # every task, 5 seeds, its target budget
     python benchmarks/family.py --tasks PandaPush-v0 --seeds 0 1 --jobs 2
+    python benchmarks/family.py --tasks PandaPush-v0 --learner fast   # issue 27's preset as the remedy
     python benchmarks/learning.py family ...         # the same
 
 | task | target (env steps, every seed at 95 %) | best anchor known |
@@ -30,7 +31,8 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from learning import train_or_resume
-from learning_tables import THRESHOLDS, first_reaching, group_table, read_progress_csv
+from learning_tables import THRESHOLDS, first_reaching, group_table, read_progress_csv, save_runs
+from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
 from tsrl.agents.config import TASK_ACTION, DemoConfig
@@ -59,11 +61,15 @@ def record(task: str, out_dir: Path) -> Path:
     return path
 
 
-def configs(task: str, seeds: list[int], total: int, eval_freq: int, demos: Path) -> list[TrainConfig]:
-    """The task's runs: the paper's agent with the demonstrations, the task's own observation and action."""
+def configs(
+    task: str, seeds: list[int], total: int, eval_freq: int, demos: Path, learner: str = "paper"
+) -> list[TrainConfig]:
+    """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
+    demonstration resets and symmetric sampling are the remedies the issue names) with the
+    demonstrations, the task's own observation and action."""
     from tsrl.envs import load_task
 
-    agent = AgentConfig(demos=DemoConfig(path=str(demos)))
+    agent = AgentConfig(learner=learner, demos=DemoConfig(path=str(demos)))
     return [
         TrainConfig(
             env_id=f"tsrl/{task}",
@@ -96,27 +102,38 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--jobs", type=int, default=1, help="runs in parallel (timings: no more than free cores)"
     )
+    parser.add_argument(
+        "--learner", choices=("paper", "fast"), default="paper", help="the agent preset (default: paper)"
+    )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/family"))
+    add_save_argument(parser, "family")
     args = parser.parse_args(argv)
     work = []
     for task in args.tasks:
         target, eval_freq = TASKS[task]
         demos = record(task, args.out_dir)
         total = args.total_timesteps or target
-        work += [(cfg, args.out_dir / task) for cfg in configs(task, args.seeds, total, eval_freq, demos)]
-    print(f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}", flush=True)
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
-            done = list(pool.map(run_one, work))
-    else:
-        done = [run_one(w) for w in work]
+        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner)
+        work += [(cfg, args.out_dir / task) for cfg in cfgs]
+    print(
+        f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}", flush=True
+    )
+    table = "benchmarks/learning_tables.py:table_family"
+    with Measurement(args.save, __file__, table, "docs/training.md") as out:
+        if args.jobs > 1:
+            with ProcessPoolExecutor(args.jobs) as pool:
+                done = list(pool.map(run_one, work))
+        else:
+            done = [run_one(w) for w in work]
+        if out is not None:
+            save_runs(done, out)
     lines = [
         "| task | target | env steps to 95 % per seed | every seed within the target |",
         "| --- | ---: | --- | --- |",
     ]
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
-        label = f"tsrl/{task} with {DEMO_EPISODES} demonstrations"
+        label = f"tsrl/{task} with {DEMO_EPISODES} demonstrations, learner {args.learner}"
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

@@ -268,7 +268,10 @@ def table_family(data_dir: Path) -> list[str]:
     ]
     by_task: dict[str, list[Path]] = {}
     for run_dir in saved_runs(data_dir):
-        by_task.setdefault(json.loads((run_dir / "config.json").read_text())["env_id"], []).append(run_dir)
+        config = json.loads((run_dir / "config.json").read_text())
+        learner = config["agent"].get("learner", "paper")
+        name = f"`{config['env_id']}`" + ("" if learner == "paper" else f" (learner {learner})")
+        by_task.setdefault(name, []).append(run_dir)
     for task, run_dirs in by_task.items():
         run_dirs = sorted(run_dirs, key=_seed)
         target = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
@@ -277,7 +280,7 @@ def table_family(data_dir: Path) -> list[str]:
         half = ", ".join(_steps(first_reaching(rows, 0.5)[0]) for rows in progress)
         met = all(first_reaching(rows, 0.95)[0] <= target for rows in progress)
         seeds = ", ".join(str(_seed(d)) for d in run_dirs)
-        lines.append(f"| `{task}` | {target:,} | {seeds} | {final} | {half} | {'yes' if met else 'no'} |")
+        lines.append(f"| {task} | {target:,} | {seeds} | {final} | {half} | {'yes' if met else 'no'} |")
     return lines
 
 
