@@ -35,7 +35,7 @@ from learning_tables import THRESHOLDS, first_reaching, group_table, read_progre
 from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
-from tsrl.agents.config import TASK_ACTION, DemoConfig
+from tsrl.agents.config import TASK_ACTION, DemoConfig, Learner
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
 TASKS: dict[str, tuple[int, int]] = {
@@ -62,7 +62,7 @@ def record(task: str, out_dir: Path) -> Path:
 
 
 def configs(
-    task: str, seeds: list[int], total: int, eval_freq: int, demos: Path, learner: str = "paper"
+    task: str, seeds: list[int], total: int, eval_freq: int, demos: Path, learner: Learner = "paper"
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
     demonstration resets and symmetric sampling are the remedies the issue names) with the
