@@ -15,6 +15,8 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
                                            # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
+    python benchmarks/learning.py learner-ablation  # the learner suite and each --without OPTION, 5 seeds
+                                           # each (runs reused by name): the option-by-option table
     python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
                                            # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
@@ -49,7 +51,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from fetch_compat import register_fetch_envs
-from learning_tables import PANDA, save_runs, speed_render, suite_lines
+from learning_tables import ABLATION_BUDGET, PANDA, ablation_table, save_runs, speed_render, suite_lines
 from record import DATA_CSV, Measurement, add_save_argument, write_rows
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig
@@ -63,6 +65,7 @@ POSE = "tsrl/UR5ePoseReach-v0"
 BUDGETS = {
     "demos": (50_000, 2_500, 100),
     "learner": (15_000, 2_500, 100),
+    "learner-ablation": (15_000, 2_500, 100),
     "learner-reach": (3_000, 100, 20),
     "learner-obstacle": (8_000, 500, 50),
     "learner-pose": (25_000, 2_500, 50),
@@ -80,14 +83,22 @@ WITHOUT: dict[str, dict[str, Any]] = {
 }
 #: The suites of the command line, and those that run 5 seeds by default (the others 3).
 SUITES = (
-    "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-reach",
-    "learner-obstacle", "learner-pose",
+    "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-ablation",
+    "learner-reach", "learner-obstacle", "learner-pose",
 )  # fmt: skip
-FIVE_SEED_SUITES = ("demos", "learner", "learner-reach", "learner-obstacle", "learner-pose")
+FIVE_SEED_SUITES = (
+    "demos",
+    "learner",
+    "learner-ablation",
+    "learner-reach",
+    "learner-obstacle",
+    "learner-pose",
+)
 #: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
 SUITE_TABLES = {
     "demos": "train",
     "learner": "train",
+    "learner-ablation": "ablation",
     "learner-reach": "reach_target",
     "learner-obstacle": "auc",
     "learner-pose": "auc",
@@ -422,19 +433,28 @@ def main() -> None:
             strict=True,
         )
     )
-    demos = record_benchmark_demos(args.out_dir) if args.suite in ("demos", "learner") else None
-    suites = ["tsrl", "fetch", "her"] if args.suite == "all" else [args.suite]
-    cfgs = [
-        cfg
-        for suite in suites
-        for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, args.without)
-        if not (args.no_demos_only and cfg.agent.demos.active)
-    ]
-    out_dir = args.out_dir / f"without-{args.without}" if args.without else args.out_dir
-    work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
+    with_demos = ("demos", "learner", "learner-ablation")
+    demos = record_benchmark_demos(args.out_dir) if args.suite in with_demos else None
+    if args.suite == "learner-ablation":  # the learner suite's runs and each ablation's, in their folders
+        work = [
+            (cfg, args.out_dir / f"without-{without}" if without else args.out_dir)
+            for without in (None, *WITHOUT)
+            for cfg in configs("learner", seeds, total, eval_freq, eval_episodes, demos, without)
+        ]
+        cfgs = [cfg for cfg, _ in work]
+    else:
+        suites = ["tsrl", "fetch", "her"] if args.suite == "all" else [args.suite]
+        cfgs = [
+            cfg
+            for suite in suites
+            for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, args.without)
+            if not (args.no_demos_only and cfg.agent.demos.active)
+        ]
+        out_dir = args.out_dir / f"without-{args.without}" if args.without else args.out_dir
+        work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
     print(
         f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
-        f"on {eval_episodes} episodes; agent: {cfgs[0].agent if args.suite == 'learner' else AgentConfig()}",
+        f"on {eval_episodes} episodes; agent: {cfgs[0].agent if args.suite.startswith('learner') else AgentConfig()}",
         flush=True,
     )
     kind = SUITE_TABLES.get(args.suite, "wall")
@@ -446,8 +466,20 @@ def main() -> None:
         else:
             done = [run_one(w) for w in work]
         if out is not None:
-            save_runs(done, out)
-    print("\n".join(["", *suite_lines(kind, done)]))
+            save_runs(done, out, ablation_variant if kind == "ablation" else None)
+    if kind == "ablation":
+        variants: dict[str, list[Path]] = {}
+        for run_dir in done:
+            variants.setdefault(ablation_variant(run_dir), []).append(run_dir)
+        print("\n".join(["", *ablation_table(variants, ABLATION_BUDGET)]))
+    else:
+        print("\n".join(["", *suite_lines(kind, done)]))
+
+
+def ablation_variant(run_dir: Path) -> str:
+    """The learner ablation's variant of a run folder: "fast" or "without-<option>" (its folder's parent)."""
+    parent = run_dir.parent.parent.name
+    return parent if parent.startswith("without-") else "fast"
 
 
 if __name__ == "__main__":

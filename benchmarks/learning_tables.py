@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,8 @@ UR5E = "tsrl/UR5eReach-v0"
 OWN_ROBOT_TARGET = 0.9
 #: Issue 27's reach target: every seed at 95 % evaluation success within this many env steps.
 REACH_TARGET_STEPS = 1_000
+#: Issue 27's pick-and-place target: every seed at 95 % evaluation success within this many env steps.
+ABLATION_BUDGET = 12_500
 
 
 def read_progress_csv(run_dir: Path) -> list[dict[str, float]]:
@@ -33,10 +36,10 @@ def read_progress_csv(run_dir: Path) -> list[dict[str, float]]:
         return [{k: float(v) if v != "" else math.nan for k, v in r.items()} for r in csv.DictReader(f)]
 
 
-def save_runs(run_dirs: list[Path], out: Path) -> None:
-    """Copies each run's RUN_FILES to out/<its parent folder's name>/<run name>/."""
+def save_runs(run_dirs: list[Path], out: Path, group: Callable[[Path], str] | None = None) -> None:
+    """Copies each run's RUN_FILES to out/<group(run folder), default its parent folder's name>/<run name>/."""
     for run_dir in run_dirs:
-        dest = out / run_dir.parent.name / run_dir.name
+        dest = out / (group(run_dir) if group else run_dir.parent.name) / run_dir.name
         dest.mkdir(parents=True, exist_ok=True)
         for name in RUN_FILES:
             shutil.copyfile(run_dir / name, dest / name)
@@ -231,7 +234,55 @@ def auc_comparison(run_dirs: list[Path]) -> list[str]:
     return lines
 
 
+def ablation_table(variants: dict[str, list[Path]], budget: int) -> list[str]:
+    """The learner ablation (issue 27): per variant ("fast", "without-<option>") its seeds' env steps to
+    95 % success, success at `budget` env steps (the target), IQM of AUC over the evaluations every run
+    has, fast's IQM minus the variant's (the option's contribution: > 0 means it helps) and the median
+    training seconds to `budget` (evaluations excluded)."""
+    from tsrl.experiments import statistics as st
+
+    curves = {v: [read_progress_csv(d) for d in sorted(dirs, key=_seed)] for v, dirs in variants.items()}
+    steps = sorted(set.intersection(*({r["env_steps"] for r in c} for cs in curves.values() for c in cs)))
+    aucs = {
+        v: st.area_under_curve(
+            np.array(steps),
+            np.array([[{r["env_steps"]: r["eval_success_rate"] for r in c}[x] for x in steps] for c in cs]),
+        )
+        for v, cs in curves.items()
+    }
+    lines = [
+        f"| variant | seeds | env steps to 95 % | success at {budget:,} | AUC, IQM [95%] | fast minus variant, AUC | training s to {budget:,} (median) |",
+        "| --- | ---: | --- | --- | --- | --- | ---: |",
+    ]
+    for v, cs in curves.items():
+        at_budget = [{r["env_steps"]: r for r in c}.get(float(budget)) for c in cs]
+        success = ", ".join("-" if r is None else f"{r['eval_success_rate']:.2f}" for r in at_budget)
+        seconds = [r["wall_time_s"] - r["eval_time_s"] for r in at_budget if r is not None]
+        reached = ", ".join(_steps(first_reaching(c, THRESHOLDS[-1])[0]) for c in cs)
+        e = st.iqm_interval(aucs[v])
+        diff = "-"
+        if v != "fast" and "fast" in aucs:
+            d = st.iqm_difference(aucs["fast"], aucs[v])
+            diff = f"{d.point[0]:+.3f} [{d.low[0]:+.3f}, {d.high[0]:+.3f}]"
+        median_s = f"{np.median(seconds):.0f}" if seconds else "-"
+        lines.append(
+            f"| {v} | {len(cs)} | {reached} | {success} | {e.point[0]:.2f} [{e.low[0]:.2f}, {e.high[0]:.2f}] "
+            f"| {diff} | {median_s} |"
+        )
+    lines += ["", f"AUC over the evaluations at {', '.join(f'{x:,.0f}' for x in steps)} env steps."]
+    return lines
+
+
 # The renderers that meta.json names ("benchmarks/learning_tables.py:table_<kind>"), one per kind.
+
+
+def table_ablation(data_dir: Path) -> list[str]:
+    """`ablation_table` of a data folder laid out <variant>/<run>/ (benchmarks/learning.py learner-ablation)."""
+    variants: dict[str, list[Path]] = {}
+    for run_dir in saved_runs(data_dir):
+        variants.setdefault(run_dir.parent.name, []).append(run_dir)
+    order = sorted(variants, key=lambda v: (v != "fast", v))
+    return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET)
 
 
 def table_wall(data_dir: Path) -> list[str]:
