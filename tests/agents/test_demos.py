@@ -37,9 +37,10 @@ from tsrl.agents.demonstrators import demo_seeds, record_demos
 from tsrl.agents.demos import DemoReplayBuffer, q_filtered_bc_loss
 from tsrl.agents.run_folder import latest_checkpoint
 from tsrl.cli import main
-from tsrl.envs import BUILTIN_TASKS
+from tsrl.envs import BUILTIN_TASKS, load_task
 from tsrl.envs.keys import OBS_KEYS
 from tsrl.envs.solvers import SOLVERS, solver_for
+from tsrl.envs.tasks import builtin_task_path
 from tsrl.exceptions import InvalidConfig
 
 REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"
@@ -152,6 +153,41 @@ def test_demos_record_works_for_every_built_in_task_with_a_solver(name, tmp_path
                 np.testing.assert_array_equal(obs[key], getattr(d, key)[i, t])
             obs, *_ = env.step(d.actions[i, t])
     env.close()
+
+
+def randomized_pick_place_file(tmp_path: Path, solver: str) -> Path:
+    """tsrl/UR5eBasePickPlace-v0's file with 5 mm of observation noise and the given `solver` key."""
+    source = builtin_task_path("UR5eBasePickPlace-v0").read_text()
+    text = source.replace('name = "UR5eBasePickPlace-v0"', f'name = "NoisyPickPlace"\nsolver = "{solver}"')
+    path = tmp_path / "noisy_pick_place.toml"
+    path.write_text(text + "\n[randomize]\nobservation_noise = 0.005\n")
+    return path
+
+
+def test_a_task_file_naming_a_solver_is_demonstrated_by_it(tmp_path):
+    """A task file with `solver = "<built-in task>"` (here a randomised copy of the base pick-and-place)
+    is recorded by that task's solver, and its demonstrations succeed in the file's own world."""
+    path = randomized_pick_place_file(tmp_path, "UR5eBasePickPlace-v0")
+    assert solver_for(str(path)) is SOLVERS["UR5eBasePickPlace-v0"]
+    d = record_demos(str(path), 2, obs="baseline")
+    assert d.n_episodes == 2 and d.is_success[:, -1].all()
+    assert d.meta["demonstrator"] == SOLVERS["UR5eBasePickPlace-v0"].name
+    bare = tmp_path / "bare.toml"
+    bare.write_text(
+        builtin_task_path("UR5eBasePickPlace-v0").read_text().replace("UR5eBasePickPlace-v0", "Bare")
+    )
+    with pytest.raises(
+        InvalidConfig, match=r"a task file needs solver = a built-in task, .*bare.toml has none"
+    ):
+        solver_for(str(bare))
+
+
+def test_a_solver_key_that_is_not_a_built_in_task_is_one_error(tmp_path):
+    path = randomized_pick_place_file(tmp_path, "PickPlace")
+    with pytest.raises(
+        InvalidConfig, match=r"solver = 'PickPlace'; accepted: the built-in task whose solver"
+    ):
+        load_task(path)
 
 
 @pytest.mark.parametrize(

@@ -465,16 +465,22 @@ SOLVERS: dict[str, type[Solver]] = {
 
 
 def solver_for(env_id: str, action: str | None = None) -> type[Solver]:
-    """The solver of the built-in task `env_id` ("tsrl/<name>") acting in action mode `action` (None or
-    "task": the task's own action); InvalidConfig naming what is accepted if it has none or acts
-    otherwise. Reads the task's file, builds no environment."""
+    """The solver of the task `env_id` acting in action mode `action` (None or "task": the task's own
+    action): a built-in task's ("tsrl/<name>"), or the one a task file names (its `solver` key, a
+    built-in task); InvalidConfig naming what is accepted if it has none or acts otherwise. Reads the
+    task's file, builds no environment."""
     name = env_id.removeprefix("tsrl/")
-    if name == env_id or name not in SOLVERS:
+    task = None
+    if name == env_id and env_id.endswith(".toml"):
+        task = load_task(env_id)
+        name = task.solver
+    if name not in SOLVERS:
+        named = "" if task is None else f" (a task file needs solver = a built-in task, {env_id} has none)"
         raise InvalidConfig(
-            f"no scripted solver for {env_id!r}; solved: {', '.join(f'tsrl/{n}' for n in SOLVERS)}"
+            f"no scripted solver for {env_id!r}{named}; solved: {', '.join(f'tsrl/{n}' for n in SOLVERS)}"
         )
     solver = SOLVERS[name]
-    own = action_mode(load_task(name).action_spec)
+    own = action_mode((task or load_task(name)).action_spec)
     accepted = solver.actions or (own,)
     if (own if action in (None, "task") else action) not in accepted:
         which = "" if solver.actions else " (its task's own action)"

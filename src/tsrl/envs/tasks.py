@@ -262,6 +262,8 @@ class Task:
         frame: "world", or "base": the scene expressed in the robot's base frame, so that every
             position of the task and every map value is relative to the base (envs/task_frames.py).
         randomize: perturbations of the world per episode (none by default).
+        solver: a built-in task whose scripted solver demonstrates this one (e.g. a copy of it with
+            a [randomize] table); empty: the task's own, where it is built in.
         description: one line shown in listings.
     """
 
@@ -280,6 +282,7 @@ class Task:
     control_dt: float = 0.04
     frame: Literal["world", "base"] = "world"
     randomize: Randomize = field(default_factory=Randomize)
+    solver: str = ""
     description: str = ""
     #: The file the task was loaded from (scene paths are relative to it); None for tasks in code.
     source: Path | None = field(default=None, compare=False)
@@ -378,6 +381,11 @@ def _validate(task: Task) -> None:
     if isinstance(task.action, str) and task.action not in ACTION_PRESETS:
         raise InvalidConfig(
             f"action = {task.action!r}; accepted: {', '.join(ACTION_PRESETS)} or an [action] table"
+        )
+    if task.solver and task.solver not in BUILTIN_TASKS:
+        raise InvalidConfig(
+            f"solver = {task.solver!r}; accepted: the built-in task whose solver acts in this one: "
+            f"{', '.join(BUILTIN_TASKS)}"
         )
     check_positive("episode_steps", task.episode_steps)
     check_positive("control_dt", task.control_dt)
