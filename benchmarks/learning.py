@@ -81,6 +81,14 @@ WITHOUT: dict[str, dict[str, Any]] = {
     "symmetric": {"demos": {"batch_share": 0.125}},
     "resets": {"demos": {"reset_prob": 0.0}},
 }
+#: The learner suite's screens (--screen NAME): other combinations tried against the target, in
+#: <out>/screen-NAME/ (the ablation's runs stay where they are).
+SCREENS: dict[str, dict[str, Any]] = {
+    # the preset at the paper's 0.4 gradient steps per env step (the 90 s budget allows about 0.7) with
+    # a reverse curriculum (RFCL): demonstration resets from the last steps, growing to the whole
+    # episode over 10,000 env steps
+    "curriculum-utd-0.4": {"utd": 0.4, "demos": {"reset_curriculum_steps": 10_000}},
+}
 #: The suites of the command line, and those that run 5 seeds by default (the others 3).
 SUITES = (
     "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-ablation",
@@ -110,8 +118,11 @@ OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch
 
 
 def learner_agent(demos: Path, without: str | None = None) -> AgentConfig:
-    """The learner suite's agent: the fast preset with the demonstrations, optionally `without` one option."""
-    change = WITHOUT[without] if without is not None else {}
+    """The learner suite's agent: the fast preset with the demonstrations, optionally `without` one
+    option ("layer_norm", ...) or changed as a screen says ("screen-<name>")."""
+    change = (
+        {} if without is None else SCREENS[without[7:]] if without.startswith("screen-") else WITHOUT[without]
+    )
     demo_cfg = DemoConfig(path=str(demos), **change.get("demos", {}))
     return AgentConfig(learner="fast", demos=demo_cfg, **{k: v for k, v in change.items() if k != "demos"})
 
@@ -395,6 +406,12 @@ def main() -> None:
         default=None,
         help="learner suite: this option at the paper's value",
     )
+    parser.add_argument(
+        "--screen",
+        choices=sorted(SCREENS),
+        default=None,
+        help="learner suite: the preset changed as SCREENS says",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
     parser.add_argument(
         "--total-timesteps", type=int, default=None, help="per run (default: 6000; demos 50000)"
@@ -424,6 +441,9 @@ def main() -> None:
                 write_rows(out / DATA_CSV, rows)
         print("\n".join(["", *speed_render(rows)]))
         return
+    if args.without and args.screen:
+        parser.error("--without and --screen: one at a time")
+    variant = args.without or (f"screen-{args.screen}" if args.screen else None)
     seeds = args.seeds or ([0, 1, 2, 3, 4] if args.suite in FIVE_SEED_SUITES else [0, 1, 2])
     total, eval_freq, eval_episodes = (
         given if given is not None else default
@@ -447,10 +467,16 @@ def main() -> None:
         cfgs = [
             cfg
             for suite in suites
-            for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, args.without)
+            for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, variant)
             if not (args.no_demos_only and cfg.agent.demos.active)
         ]
-        out_dir = args.out_dir / f"without-{args.without}" if args.without else args.out_dir
+        out_dir = (
+            args.out_dir / f"without-{args.without}"
+            if args.without
+            else args.out_dir / variant
+            if variant
+            else args.out_dir
+        )
         work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
     print(
         f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
