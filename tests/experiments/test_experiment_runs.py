@@ -23,6 +23,7 @@ from cli_runner import REPO, TSRL_WITH_CTRL_C, run_tsrl
 
 from tsrl.agents.demo_files import load_demos, sha256
 from tsrl.agents.run_folder import check_not_locked, latest_checkpoint, read_state
+from tsrl.exceptions import InvalidConfig
 from tsrl.experiments.aggregate import RESULT_COLUMNS, write_report
 from tsrl.experiments.config import Comparison, load_experiment
 from tsrl.experiments.pool import run_experiment
@@ -301,3 +302,83 @@ def test_cli_errors_are_one_line_and_exit_code_2(args, expected, tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], result.stderr
     assert not any(tmp_path.glob("*/")), "no results folder for bad input"
+
+
+FINETUNE = """
+description = "UR5e reach, then the Panda's from scratch and fine-tuned from the UR5e runs."
+env = ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0"]
+seeds = [0]
+total_timesteps = 200
+eval_freq = 100
+eval_episodes = 2
+checkpoint_freq = 100
+
+[agent]
+learning_starts = 100
+gradient_steps = 10
+batch_size = 64
+
+[[finetune]]
+from_env = "tsrl/UR5eReach-v0"
+env = "tsrl/PandaReach-v0"
+"""
+
+
+def test_finetune_runs_start_from_their_sources_after_them_and_are_their_own_arm(tmp_path):
+    definition = tmp_path / "tiny-finetune.toml"
+    definition.write_text(FINETUNE)
+    exp = load_experiment(definition)
+    exp_dir = (tmp_path / "results" / "tiny-finetune").resolve()
+    ur5e, panda, tuned = exp.runs(exp_dir)
+    assert tuned.env_id == panda.env_id and tuned.init_from == str(exp_dir / ur5e.run_name)
+    assert tuned.run_name == panda.run_name + "__init"
+    assert exp.arms() == [
+        "tsrl/UR5eReach-v0 / init_from=False",
+        "tsrl/PandaReach-v0 / init_from=False",
+        "tsrl/PandaReach-v0 / init_from=True",
+    ]
+    assert exp.arm_runs("tsrl/PandaReach-v0 / init_from=True", exp_dir) == [tuned]
+    outcomes = run_experiment(exp, tmp_path / "results", workers=2, stream=io.StringIO())
+    assert [o.status for o in outcomes] == ["trained"] * 3, [o.error for o in outcomes]
+    record = json.loads((exp_dir / tuned.run_name / "init_from.json").read_text())
+    assert str(exp_dir / ur5e.run_name / "checkpoints") in json.dumps(record)
+    # The report names the arms as the experiment does.
+    write_report(exp_dir)
+    with open(exp_dir / "summary.csv", newline="") as f:
+        variants = {(r["env"], r["variant"]) for r in csv.DictReader(f)}
+    assert variants == {
+        ("tsrl/UR5eReach-v0", "init_from=False"),
+        ("tsrl/PandaReach-v0", "init_from=False"),
+        ("tsrl/PandaReach-v0", "init_from=True"),
+    }
+
+
+def test_a_finetune_whose_source_did_not_finish_fails_naming_it_and_a_stop_starts_none(tmp_path):
+    from tsrl.experiments.pool import Progress, _startable
+    from tsrl.experiments.runner import RunOutcome
+
+    definition = tmp_path / "tiny-finetune.toml"
+    definition.write_text(FINETUNE)
+    exp = load_experiment(definition)
+    exp_dir = tmp_path / "results" / "tiny-finetune"
+    ur5e, _, tuned = exp.runs(exp_dir.resolve())
+    outcomes: dict = {}
+    display = Progress(exp.runs(exp_dir), exp_dir, io.StringIO())
+    assert _startable([tuned], outcomes, display) == []
+    assert outcomes[tuned.run_name].status == "failed"
+    assert outcomes[tuned.run_name].error == f"its source run {ur5e.run_name} has not finished"
+    stopped = {ur5e.run_name: RunOutcome(ur5e.run_name, "interrupted", 100, 1.0)}
+    assert _startable([tuned], stopped, display) == []
+    assert stopped[tuned.run_name].error == "not started"
+    display.close()
+
+
+def test_a_finetune_from_an_env_outside_the_grid_is_one_error(tmp_path):
+    definition = tmp_path / "bad-finetune.toml"
+    definition.write_text(
+        FINETUNE.replace('from_env = "tsrl/UR5eReach-v0"', 'from_env = "tsrl/UR5ePickPlace-v0"')
+    )
+    with pytest.raises(
+        InvalidConfig, match=r"\[finetune\[0\]\] from_env 'tsrl/UR5ePickPlace-v0' is not in the grid; accepted: "
+    ):
+        load_experiment(definition)

@@ -112,6 +112,26 @@ class Evaluation:
 
 
 @dataclass(frozen=True)
+class FineTune:
+    """Fine-tuning runs (the file's [[finetune]] tables): for every seed and (obs, action, algo) of the
+    grid, a run on `env` that starts from the grid's run on `from_env` of the same seed, obs, action and
+    algo (its final networks and normaliser: `tsrl train --init-from`), with the experiment's budget,
+    evaluations and demonstrations. They start once their sources have finished. Their arms are labelled
+    with the variant `init_from=True` (the grid's with `init_from=False`), as `tsrl report` names them."""
+
+    from_env: str
+    """One of the grid's env values: whose runs the fine-tuning runs start from."""
+    env: str
+    """The task they are trained on: a registered id or a task file (relative to the experiment file)
+    of the same layout (typically the same task on the other arm)."""
+
+    def __post_init__(self) -> None:
+        for name in ("from_env", "env"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise InvalidConfig(f"{name} must be an env id or task file; got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
 class DemoRecipe:
     """Scripted demonstrations an experiment records once per (env, obs, action), before its runs, into
     `<experiment dir>/demos/<env>__<obs>__<action>.npz`; every run of that configuration trains with
@@ -164,6 +184,8 @@ class ExperimentConfig:
     Holm-adjusted p-value, power and verdict by `tsrl report`."""
     evaluate: tuple[Evaluation, ...] = ()
     """Evaluation-only arms (the file's [[evaluate]] tables), run after training."""
+    finetune: tuple[FineTune, ...] = ()
+    """Fine-tuning runs from another env's runs (the file's [[finetune]] tables), after the grid's."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name or self.name.startswith("."):
@@ -179,22 +201,34 @@ class ExperimentConfig:
                 raise InvalidConfig(f"{axis} lists {', '.join(map(repr, repeated))} more than once")
         if min(self.seeds) < 0:
             raise InvalidConfig(f"seeds must be integers >= 0; got {min(self.seeds)}")
+        self._check_finetune()
         self._check_demos()
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
         self._check_evaluations()
         self._check_comparisons()
 
     def arms(self) -> list[str]:
-        """The labels of the grid's configurations, as the report names them (config_labels)."""
-        keys: list[Key] = [
-            (e, o, a, g, "") for e, o, a, g in itertools.product(self.env, self.obs, self.action, self.algo)
-        ]
+        """The labels of the trained configurations (the grid's, then the fine-tuning ones), as the
+        report names them (config_labels over the runs' keys)."""
+        keys = list(dict.fromkeys(self._run_keys()))
         return config_labels(keys)
 
     def arm_runs(self, arm: str, exp_dir: Path | None = None) -> list[TrainConfig]:
         """The runs (one per seed, in seed order) of the trained arm labelled `arm`."""
-        labels = self.arms()  # runs() is seed-major over the same grid order
-        return [cfg for i, cfg in enumerate(self.runs(exp_dir)) if labels[i % len(labels)] == arm]
+        keys = self._run_keys()
+        label = dict(zip(dict.fromkeys(keys), self.arms(), strict=True))
+        runs = [cfg for cfg, key in zip(self.runs(exp_dir), keys, strict=True) if label[key] == arm]
+        return sorted(runs, key=lambda cfg: cfg.seed)
+
+    def _run_keys(self) -> list[Key]:
+        """Each run's configuration key (env, obs, action, algo, variant), as the report makes them."""
+        from .results import variants
+
+        runs = self.runs()
+        return [
+            (cfg.env_id, cfg.obs, cfg.action, cfg.agent.algo, v)
+            for cfg, v in zip(runs, variants(runs), strict=True)
+        ]
 
     def eval_arms(self) -> list[str]:
         """The labels of the evaluation-only arms ([[evaluate]]), in file order."""
@@ -227,6 +261,13 @@ class ExperimentConfig:
             if c.a == c.b:
                 raise InvalidConfig(f"[comparisons[{i}]] compares arm {c.a!r} with itself")
 
+    def _check_finetune(self) -> None:
+        for i, f in enumerate(self.finetune):
+            if f.from_env not in self.env:
+                raise InvalidConfig(
+                    f"[finetune[{i}]] from_env {f.from_env!r} is not in the grid; accepted: {', '.join(self.env)}"
+                )
+
     def _check_demos(self) -> None:
         if self.demos is None:
             return
@@ -235,7 +276,8 @@ class ExperimentConfig:
         from ..agents.config import TASK_ACTION
         from ..envs.solvers import solver_for
 
-        for env, action in itertools.product(self.env, self.action):
+        envs = list(dict.fromkeys([*self.env, *(f.env for f in self.finetune)]))
+        for env, action in itertools.product(envs, self.action):
             try:
                 solver_for(env, None if action == TASK_ACTION else action)
             except InvalidConfig as err:
@@ -243,33 +285,44 @@ class ExperimentConfig:
 
     def runs(self, exp_dir: Path | None = None) -> list[TrainConfig]:
         """One TrainConfig per grid point, seed-major (every configuration's seed 0 first), so that a
-        partial experiment already compares all configurations. With [demos], each run's demonstration
-        file is `demo_file(exp_dir, cfg)` (exp_dir defaults to ./<name>)."""
-        runs = []
-        for seed, env, obs, action, algo in itertools.product(
-            self.seeds, self.env, self.obs, self.action, self.algo
-        ):
-            cfg = TrainConfig(
-                env_id=env,
-                obs=obs,
-                action=action,
-                seed=seed,
-                total_timesteps=self.total_timesteps,
-                eval_freq=self.eval_freq,
-                eval_episodes=self.eval_episodes,
-                checkpoint_freq=self.checkpoint_freq,
-                agent=dataclasses.replace(self.agent, algo=algo),
+        partial experiment already compares all configurations; then the [[finetune]] runs in the same
+        order, each with `init_from` its source run's folder. With [demos], each run's demonstration
+        file is `demo_file(exp_dir, cfg)`. exp_dir defaults to ./<name>."""
+        folder = exp_dir if exp_dir is not None else Path(self.name)
+        grid = [
+            self._run(env, obs, action, algo, seed, folder)
+            for seed, env, obs, action, algo in itertools.product(
+                self.seeds, self.env, self.obs, self.action, self.algo
             )
-            if self.demos is not None:
-                path = str(demo_file(exp_dir if exp_dir is not None else Path(self.name), cfg))
-                cfg = dataclasses.replace(
-                    cfg,
-                    agent=dataclasses.replace(
-                        cfg.agent, demos=dataclasses.replace(cfg.agent.demos, path=path)
-                    ),
-                )
-            runs.append(cfg)
-        return runs
+        ]
+        tuned = [
+            dataclasses.replace(
+                self._run(f.env, obs, action, algo, seed, folder),
+                init_from=str(folder / self._run(f.from_env, obs, action, algo, seed, folder).run_name),
+            )
+            for seed, f, obs, action, algo in itertools.product(
+                self.seeds, self.finetune, self.obs, self.action, self.algo
+            )
+        ]
+        return grid + tuned
+
+    def _run(self, env: str, obs: str, action: str, algo: Algo, seed: int, folder: Path) -> TrainConfig:
+        cfg = TrainConfig(
+            env_id=env,
+            obs=obs,
+            action=action,
+            seed=seed,
+            total_timesteps=self.total_timesteps,
+            eval_freq=self.eval_freq,
+            eval_episodes=self.eval_episodes,
+            checkpoint_freq=self.checkpoint_freq,
+            agent=dataclasses.replace(self.agent, algo=algo),
+        )
+        if self.demos is None:
+            return cfg
+        path = str(demo_file(folder, cfg))
+        demos = dataclasses.replace(cfg.agent.demos, path=path)
+        return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, demos=demos))
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -299,10 +352,11 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             else e
             for e in envs
         ]
-    for table in data.get("evaluate", []) if isinstance(data.get("evaluate"), list) else []:
-        env = table.get("env") if isinstance(table, dict) else None
-        if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():
-            table["env"] = str(path.parent / env)
+    for kind, key in (("evaluate", "env"), ("finetune", "env"), ("finetune", "from_env")):
+        for table in data.get(kind, []) if isinstance(data.get(kind), list) else []:
+            env = table.get(key) if isinstance(table, dict) else None
+            if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():
+                table[key] = str(path.parent / env)
     agent = data.get("agent")
     if isinstance(agent, dict) and "algo" in agent:
         raise InvalidConfig(f"{path}: [agent] algo is a grid axis: set `algo = [...]` at the top level")

@@ -34,7 +34,7 @@ from ..exceptions import InvalidConfig
 from ..files import write_atomic
 from ..signals import in_main_thread
 from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, Key, config_labels
-from .runner import ERROR_FILE, RunOutcome, run_one, run_state
+from .runner import ERROR_FILE, RunOutcome, checkpoint_steps, run_one, run_state
 
 #: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
@@ -75,16 +75,51 @@ def run_experiment(
                 todo.append(cfg)
         if exp.demos is not None:
             record_missing_demos(exp.demos, todo, display)
-        if todo:
-            backend: _Backend = (
-                _LocalPool(exp_dir, min(workers or len(os.sched_getaffinity(0)), len(todo)))
-                if ray_address is None
-                else _RayPool(exp_dir, ray_address, workers)
-            )
-            _schedule(todo, backend, display, outcomes)
+
+        def backend(n: int) -> _Backend:
+            if ray_address is not None:
+                return _RayPool(exp_dir, ray_address, workers)
+            return _LocalPool(exp_dir, min(workers or len(os.sched_getaffinity(0)), n))
+
+        first = [cfg for cfg in todo if cfg.init_from is None]
+        if first:
+            _schedule(first, backend(len(first)), display, outcomes)
+        tuned = [cfg for cfg in todo if cfg.init_from is not None]  # [[finetune]]: after their sources
+        if tuned:
+            startable = _startable(tuned, outcomes, display)
+            if startable:
+                _schedule(startable, backend(len(startable)), display, outcomes)
     finally:
         display.close()
     return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
+
+
+def _startable(
+    tuned: list[TrainConfig], outcomes: dict[str, RunOutcome], display: Progress
+) -> list[TrainConfig]:
+    """The fine-tuning runs whose source run has finished. After a stop (an interrupted run) none
+    starts ("not started"); one whose source did not finish is failed, its source named."""
+    stopped = any(o.status == "interrupted" for o in outcomes.values())
+    startable = []
+    for cfg in tuned:
+        source = Path(cfg.init_from or "")
+        if stopped:
+            outcome = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+        elif _finished(cfg, source):
+            startable.append(cfg)
+            continue
+        else:
+            outcome = RunOutcome(
+                cfg.run_name, "failed", 0, 0.0, error=f"its source run {source.name} has not finished"
+            )
+        outcomes[cfg.run_name] = outcome
+        display.finished(outcome)
+    return startable
+
+
+def _finished(cfg: TrainConfig, source: Path) -> bool:
+    """Whether the source run of a fine-tuning run `cfg` reached the experiment's budget (`cfg`'s)."""
+    return checkpoint_steps(source) >= cfg.total_timesteps
 
 
 def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: Progress) -> None:
