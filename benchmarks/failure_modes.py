@@ -30,7 +30,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np
 from record import DATA_CSV, Measurement, add_save_argument, write_rows
 
-from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy
+from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
 from tsrl.agents.factory import make_env
 from tsrl.envs.base import TaskEnv
 
@@ -77,11 +77,7 @@ def failure_modes(run_dir: Path, episodes: int) -> dict[str, Any]:
         path = []
         done = False
         while not done:
-            batch: Any = {k: v[None] for k, v in obs.items()}
-            if normalizer is not None:
-                batch = normalizer.normalize_obs(batch)
-            action, _ = model.predict(batch, deterministic=True)
-            obs, _, terminated, truncated, _ = env.step(action[0])
+            obs, _, terminated, truncated, _ = env.step(policy_action(model, normalizer, obs))
             path.append(base.data.body(body).xpos.copy())
             done = terminated or truncated
         positions = np.array(path)

@@ -25,12 +25,11 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from learning import train_or_resume
+from learning import in_parallel, train_or_resume
 from learning_tables import THRESHOLDS, first_reaching, group_table, read_progress_csv, save_runs
 from record import Measurement, add_save_argument
 
@@ -120,11 +119,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     table = "benchmarks/learning_tables.py:table_family"
     with Measurement(args.save, __file__, table, "docs/training.md") as out:
-        if args.jobs > 1:
-            with ProcessPoolExecutor(args.jobs) as pool:
-                done = list(pool.map(run_one, work))
-        else:
-            done = [run_one(w) for w in work]
+        done = in_parallel(run_one, work, args.jobs)
         if out is not None:
             save_runs(done, out)
     lines = [

@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -215,6 +216,14 @@ def run_one(args: tuple[TrainConfig, Path]) -> Path:
         POSE: "pose-reach",
     }.get(cfg.env_id, "own-robot" if cfg.is_task_file else "reach")
     return train_or_resume(cfg, parent)
+
+
+def in_parallel(fn: Callable[[Any], Path], work: list[Any], jobs: int) -> list[Path]:
+    """`fn` over `work` in order: in `jobs` processes, or in this one for jobs 1."""
+    if jobs <= 1:
+        return [fn(w) for w in work]
+    with ProcessPoolExecutor(jobs) as pool:
+        return list(pool.map(fn, work))
 
 
 def train_or_resume(cfg: TrainConfig, parent: Path) -> Path:
@@ -486,11 +495,7 @@ def main() -> None:
     kind = SUITE_TABLES.get(args.suite, "wall")
     doc = "docs/robots.md" if args.suite == "own-robot" else "docs/training.md"
     with Measurement(args.save, __file__, f"benchmarks/learning_tables.py:table_{kind}", doc) as out:
-        if args.jobs > 1:
-            with ProcessPoolExecutor(args.jobs) as pool:
-                done = list(pool.map(run_one, work))
-        else:
-            done = [run_one(w) for w in work]
+        done = in_parallel(run_one, work, args.jobs)
         if out is not None:
             save_runs(done, out, ablation_variant if kind == "ablation" else None)
     if kind == "ablation":

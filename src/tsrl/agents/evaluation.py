@@ -199,17 +199,24 @@ def render_run(
             frames.append(env.render())
             done = False
             while not done:
-                batch: Any = {k: v[None] for k, v in obs.items()}
-                if normalizer is not None:
-                    batch = normalizer.normalize_obs(batch)
-                action, _ = model.predict(batch, deterministic=True)
-                obs, _, terminated, truncated, _ = env.step(action[0])
+                obs, _, terminated, truncated, _ = env.step(policy_action(model, normalizer, obs))
                 frames.append(env.render())
                 done = terminated or truncated
         fps = int(env.metadata.get("render_fps", 25))
     finally:
         env.close()  # closes the env's off-screen renderer
     return write_video(frames, Path(out), fps)
+
+
+def policy_action(
+    model: BaseAlgorithm, normalizer: VecNormalize | None, obs: dict[str, np.ndarray]
+) -> np.ndarray:
+    """The policy's deterministic action (k,) for one observation dict, normalised as in training."""
+    batch: Any = {k: v[None] for k, v in obs.items()}
+    if normalizer is not None:
+        batch = normalizer.normalize_obs(batch)
+    action, _ = model.predict(batch, deterministic=True)
+    return np.asarray(action[0])
 
 
 def write_video(frames: list[Any], out: Path, fps: int) -> Path:
