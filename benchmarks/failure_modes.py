@@ -20,7 +20,6 @@ Also per run: the median number of steps successful episodes took to first meet 
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 from pathlib import Path
 from typing import Any
@@ -28,7 +27,7 @@ from typing import Any
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
-from record import DATA_CSV, Measurement, add_save_argument, write_rows
+from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
 from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
 from tsrl.agents.factory import make_env
@@ -114,8 +113,8 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def table(data_dir: Path) -> list[str]:
-    with open(data_dir / DATA_CSV) as f:
-        return render(list(csv.DictReader(f)))
+    """The table from the data `--save` wrote to `data_dir`."""
+    return render(read_rows(data_dir / DATA_CSV))
 
 
 def main() -> None:

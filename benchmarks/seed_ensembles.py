@@ -25,12 +25,13 @@ import os
 import statistics
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import torch as th
-from record import DATA_CSV, Measurement, add_save_argument, write_rows
+from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 from torch import nn
 from torch.func import functional_call, stack_module_state
 
@@ -259,11 +260,9 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
-def table(data_dir: Any) -> list[str]:
-    import csv
-
-    with open(data_dir / DATA_CSV) as f:
-        return render(list(csv.DictReader(f)))
+def table(data_dir: Path) -> list[str]:
+    """The table from the data `--save` wrote to `data_dir`."""
+    return render(read_rows(data_dir / DATA_CSV))
 
 
 def main() -> None:
