@@ -15,8 +15,8 @@ evaluation success, and env steps per second including learning (evaluation time
     python benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
                                            # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
-    python benchmarks/learning.py learner-ablation  # the learner suite and each --without OPTION, 5 seeds
-                                           # each (runs reused by name): the option-by-option table
+    python benchmarks/learning.py learner-ablation  # the learner suite, each --without OPTION and each
+                                           # --screen NAME, 5 seeds each (runs reused by name): one table
     python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
                                            # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
@@ -466,8 +466,8 @@ def main() -> None:
     demos = record_benchmark_demos(args.out_dir) if args.suite in with_demos else None
     if args.suite == "learner-ablation":  # the learner suite's runs and each ablation's, in their folders
         work = [
-            (cfg, args.out_dir / f"without-{without}" if without else args.out_dir)
-            for without in (None, *WITHOUT)
+            (cfg, args.out_dir / ablation_folder(without) if without else args.out_dir)
+            for without in (None, *WITHOUT, *(f"screen-{name}" for name in SCREENS))
             for cfg in configs("learner", seeds, total, eval_freq, eval_episodes, demos, without)
         ]
         cfgs = [cfg for cfg, _ in work]
@@ -479,13 +479,7 @@ def main() -> None:
             for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, variant)
             if not (args.no_demos_only and cfg.agent.demos.active)
         ]
-        out_dir = (
-            args.out_dir / f"without-{args.without}"
-            if args.without
-            else args.out_dir / variant
-            if variant
-            else args.out_dir
-        )
+        out_dir = args.out_dir / ablation_folder(variant) if variant else args.out_dir
         work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
     print(
         f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
@@ -507,10 +501,16 @@ def main() -> None:
         print("\n".join(["", *suite_lines(kind, done)]))
 
 
+def ablation_folder(variant: str) -> str:
+    """The folder of a learner variant's runs under --out-dir: without-<option>, or screen-<name> as given."""
+    return variant if variant.startswith("screen-") else f"without-{variant}"
+
+
 def ablation_variant(run_dir: Path) -> str:
-    """The learner ablation's variant of a run folder: "fast" or "without-<option>" (its folder's parent)."""
+    """The learner ablation's variant of a run folder: "fast", "without-<option>" or "screen-<name>"
+    (its folder's parent)."""
     parent = run_dir.parent.parent.name
-    return parent if parent.startswith("without-") else "fast"
+    return parent if parent.startswith(("without-", "screen-")) else "fast"
 
 
 if __name__ == "__main__":

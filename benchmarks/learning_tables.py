@@ -88,7 +88,13 @@ def run_label(config: dict[str, Any]) -> str:
     if agent.get("learner", "paper") != "paper":
         label += (
             f", learner {agent['learner']} (LayerNorm {agent['layer_norm']}, UTD {agent['utd']}, "
-            f"resets {demos.get('reset_prob', 0.0)})"
+            f"resets {demos.get('reset_prob', 0.0)}"
+            + (
+                f", curriculum {demos['reset_curriculum_steps']:,}"
+                if demos.get("reset_curriculum_steps")
+                else ""
+            )
+            + ")"
         )
     return label
 
@@ -281,7 +287,7 @@ def table_ablation(data_dir: Path) -> list[str]:
     variants: dict[str, list[Path]] = {}
     for run_dir in saved_runs(data_dir):
         variants.setdefault(run_dir.parent.name, []).append(run_dir)
-    order = sorted(variants, key=lambda v: (v != "fast", v))
+    order = sorted(variants, key=lambda v: (v != "fast", v.startswith("screen-"), v))
     return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET)
 
 
