@@ -47,15 +47,16 @@ EVAL_EPISODES = 100
 DEMO_EPISODES = 100
 
 
-def record(task: str, out_dir: Path) -> Path:
-    """The task's 100 successful scripted demonstrations in its own observation and action, recorded once."""
+def record(task: str, out_dir: Path, episodes: int = DEMO_EPISODES) -> Path:
+    """The task's `episodes` successful scripted demonstrations in its own observation and action,
+    recorded once."""
     from tsrl.agents.demo_files import save_demos, summary_line
     from tsrl.agents.demonstrators import record_demos
     from tsrl.envs import load_task
 
-    path = out_dir / "demos" / f"{task}-scripted-{DEMO_EPISODES}.npz"
+    path = out_dir / "demos" / f"{task}-scripted-{episodes}.npz"
     if not path.is_file():
-        demos = record_demos(f"tsrl/{task}", DEMO_EPISODES, obs=load_task(task).observation, seed=0)
+        demos = record_demos(f"tsrl/{task}", episodes, obs=load_task(task).observation, seed=0)
         print(summary_line(demos, save_demos(demos, path)), flush=True)
     return path
 
@@ -105,15 +106,24 @@ def main(argv: list[str] | None = None) -> None:
         "--learner", choices=("paper", "fast"), default="paper", help="the agent preset (default: paper)"
     )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/family"))
+    parser.add_argument(
+        "--demos",
+        type=int,
+        default=DEMO_EPISODES,
+        help=f"scripted demonstrations per task (default {DEMO_EPISODES}; more: issue 24's first remedy)",
+    )
     add_save_argument(parser, "family")
     args = parser.parse_args(argv)
+    if args.demos < 1:
+        parser.error(f"--demos must be >= 1; got {args.demos}")
     work = []
     for task in args.tasks:
         target, eval_freq = TASKS[task]
-        demos = record(task, args.out_dir)
+        demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
         cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner)
-        work += [(cfg, args.out_dir / task) for cfg in cfgs]
+        parent = args.out_dir / (task if args.demos == DEMO_EPISODES else f"{task}-demos-{args.demos}")
+        work += [(cfg, parent) for cfg in cfgs]
     print(
         f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}", flush=True
     )
@@ -128,7 +138,7 @@ def main(argv: list[str] | None = None) -> None:
     ]
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
-        label = f"tsrl/{task} with {DEMO_EPISODES} demonstrations, learner {args.learner}"
+        label = f"tsrl/{task} with {args.demos} demonstrations, learner {args.learner}"
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

@@ -24,6 +24,7 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # seeds, 8,000 env steps, eval every 500 on 50 episodes; IQM of AUC
     python benchmarks/learning.py learner-pose  # the same two on tsrl/UR5ePoseReach-v0 (its own fs2 and
                                            # pose action): 5 seeds, 25,000 env steps, eval every 2,500 on 50
+    python benchmarks/learning.py family [OPTIONS]  # the manipulation family (benchmarks/family.py, its options)
     python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
@@ -42,6 +43,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -402,6 +404,11 @@ def matmul_floor(model: Any, batch_size: int, repeats: int) -> float:
 
 
 def main() -> None:
+    if sys.argv[1:2] == ["family"]:  # the manipulation family's benchmark lives in its own script
+        from family import main as family_main
+
+        family_main(sys.argv[2:])
+        return
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

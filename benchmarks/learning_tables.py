@@ -327,7 +327,10 @@ def table_family(data_dir: Path) -> list[str]:
     for run_dir in saved_runs(data_dir):
         config = json.loads((run_dir / "config.json").read_text())
         learner = config["agent"].get("learner", "paper")
-        name = f"`{config['env_id']}`" + ("" if learner == "paper" else f" (learner {learner})")
+        demos = Path(config["agent"]["demos"]["path"] or "").stem.rsplit("-", 1)[-1]
+        extra = [f"learner {learner}"] if learner != "paper" else []
+        extra += [f"{demos} demonstrations"] if demos.isdigit() and int(demos) != 100 else []
+        name = f"`{config['env_id']}`" + (f" ({', '.join(extra)})" if extra else "")
         by_task.setdefault(name, []).append(run_dir)
     for task, run_dirs in by_task.items():
         run_dirs = sorted(run_dirs, key=_seed)
