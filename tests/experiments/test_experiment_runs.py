@@ -379,6 +379,7 @@ def test_a_finetune_from_an_env_outside_the_grid_is_one_error(tmp_path):
         FINETUNE.replace('from_env = "tsrl/UR5eReach-v0"', 'from_env = "tsrl/UR5ePickPlace-v0"')
     )
     with pytest.raises(
-        InvalidConfig, match=r"\[finetune\[0\]\] from_env 'tsrl/UR5ePickPlace-v0' is not in the grid; accepted: "
+        InvalidConfig,
+        match=r"\[finetune\[0\]\] from_env 'tsrl/UR5ePickPlace-v0' is not in the grid; accepted: ",
     ):
         load_experiment(definition)
