@@ -130,7 +130,11 @@ def learner_agent(demos: Path, without: str | None = None) -> AgentConfig:
     combination), optionally `without` one option ("layer_norm", ...) or changed as a screen says
     ("screen-<name>")."""
     change = (
-        {} if without is None else SCREENS[without[7:]] if without.startswith("screen-") else WITHOUT[without]
+        {}
+        if without is None
+        else SCREENS[without.removeprefix("screen-")]
+        if without.startswith("screen-")
+        else WITHOUT[without]
     )
     demo_cfg = DemoConfig(path=str(demos), **(SCREENED_DEMOS | change.get("demos", {})))
     return AgentConfig(learner="fast", demos=demo_cfg, **{k: v for k, v in change.items() if k != "demos"})

@@ -304,24 +304,12 @@ def test_cli_errors_are_one_line_and_exit_code_2(args, expected, tmp_path):
     assert not any(tmp_path.glob("*/")), "no results folder for bad input"
 
 
-FINETUNE = """
-description = "UR5e reach, then the Panda's from scratch and fine-tuned from the UR5e runs."
-env = ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0"]
-seeds = [0]
-total_timesteps = 200
-eval_freq = 100
-eval_episodes = 2
-checkpoint_freq = 100
-
-[agent]
-learning_starts = 100
-gradient_steps = 10
-batch_size = 64
-
-[[finetune]]
-from_env = "tsrl/UR5eReach-v0"
-env = "tsrl/PandaReach-v0"
-"""
+FINETUNE = (
+    'description = "UR5e reach, then the Panda\'s from scratch and fine-tuned from the UR5e runs."\n'
+    'env = ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0"]\nseeds = [0]\n'
+    + TINY[TINY.index("total_timesteps") :].replace("total_timesteps = 300", "total_timesteps = 200")
+    + '\n[[finetune]]\nfrom_env = "tsrl/UR5eReach-v0"\nenv = "tsrl/PandaReach-v0"\n'
+)
 
 
 def test_finetune_runs_start_from_their_sources_after_them_and_are_their_own_arm(tmp_path):

@@ -216,7 +216,8 @@ class ExperimentConfig:
     def arm_runs(self, arm: str, exp_dir: Path | None = None) -> list[TrainConfig]:
         """The runs (one per seed, in seed order) of the trained arm labelled `arm`."""
         keys = self._run_keys()
-        label = dict(zip(dict.fromkeys(keys), self.arms(), strict=True))
+        distinct = list(dict.fromkeys(keys))
+        label = dict(zip(distinct, config_labels(distinct), strict=True))
         runs = [cfg for cfg, key in zip(self.runs(exp_dir), keys, strict=True) if label[key] == arm]
         return sorted(runs, key=lambda cfg: cfg.seed)
 

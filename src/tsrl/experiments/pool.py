@@ -105,7 +105,7 @@ def _startable(
         source = Path(cfg.init_from or "")
         if stopped:
             outcome = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
-        elif _finished(cfg, source):
+        elif checkpoint_steps(source) >= cfg.total_timesteps:  # the source reached the same budget
             startable.append(cfg)
             continue
         else:
@@ -115,11 +115,6 @@ def _startable(
         outcomes[cfg.run_name] = outcome
         display.finished(outcome)
     return startable
-
-
-def _finished(cfg: TrainConfig, source: Path) -> bool:
-    """Whether the source run of a fine-tuning run `cfg` reached the experiment's budget (`cfg`'s)."""
-    return checkpoint_steps(source) >= cfg.total_timesteps
 
 
 def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: Progress) -> None:
