@@ -144,6 +144,7 @@ def test_summary_censors_seeds_that_never_reach_a_threshold():
     assert fs1["seeds_reaching_50"] == 2 and fs1["env_steps_to_50_km_median"] == 1000
     assert fs1["seeds_reaching_90"] == 2 and fs1["env_steps_to_90_km_median"] == 1500
     assert fs1["episodes_to_90_km_median"] == 30
+    assert fs1["seeds_reaching_95"] == 2 and fs1["env_steps_to_95_km_median"] == 1500  # 1000, 1500
     # AUC: trapezoids of 500 steps over 2000: 1525 / 2000, 1075 / 2000, 400 / 2000; IQM of 3 = mean.
     assert fs1["auc_iqm"] == pytest.approx((0.7625 + 0.5375 + 0.2) / 3)
     assert fs1["auc_ci_low"] <= fs1["auc_iqm"] <= fs1["auc_ci_high"]

@@ -34,8 +34,9 @@ ALPHA = 0.05
 """Family-wise error rate of a study's comparisons (Holm)."""
 POWER = 0.8
 """Power at which the minimum detectable effect is stated."""
-THRESHOLDS: tuple[float, ...] = (0.5, 0.9)
-"""Success rates whose time to reach is reported (and drawn in the learning curves)."""
+THRESHOLDS: tuple[float, ...] = (0.5, 0.9, 0.95)
+"""Success rates whose time to reach is reported (and drawn in the learning curves); 95 % is where
+the benchmarks' and issues' targets stand."""
 
 Direction = Literal["greater", "less", "two-sided"]
 
