@@ -9,7 +9,7 @@ comparisons, the report. Statistics across seeds come from tsrl.experiments.stat
 - final success: per seed, the mean of the last FINAL_EVALS of those evaluations; IQM and interval;
 - final penalised episodes (tasks with penalties, e.g. touching an obstacle): per seed, the mean share
   of evaluation episodes with a penalised step over the last FINAL_EVALS evaluations; IQM and interval;
-- env steps / episodes to a threshold (50%, 90%): per seed, the first evaluation at or above it; a seed
+- env steps / episodes to a threshold (50%, 90%, 95%): per seed, the first evaluation at or above it; a seed
   that never gets there is censored at its last evaluation, and the Kaplan-Meier median is reported
   with the number of seeds that reached it (k of n); inf when fewer than half are known to have;
 - comparisons (the experiment file's [[comparisons]]): IQM(a) - IQM(b) of a per-seed metric with its
@@ -321,7 +321,7 @@ _HOW_TO_READ = (
     "seed {seed}. **AUC** (the primary sample-efficiency metric): per seed, the area under its success "
     "curve over the evaluations every seed of the configuration reached, divided by their span of env "
     "steps (1 = success 1 at every evaluation). **Final success**: per seed, the mean of the last "
-    "{final} of those evaluations. **Env steps to 50% / 90%**: Kaplan-Meier median of each seed's first "
+    "{final} of those evaluations. **Env steps to 50% / 90% / 95%**: Kaplan-Meier median of each seed's first "
     "evaluation at or above the threshold; a seed that never got there counts as censored at its last "
     "evaluation, not dropped; `k/n` seeds reached it; `> N` when fewer than half are known to have "
     "(the median lies beyond the N env steps evaluated). Wall time: training plus evaluations, per run."

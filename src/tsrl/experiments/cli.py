@@ -57,7 +57,7 @@ class Report:
     """An experiment's results folder (e.g. results/quick-reach). Its run folders are aggregated into
     results.csv (one row per run and evaluation), summary.csv and summary.md (per configuration: IQM
     across seeds of the area under the success curve and of final success with 95% stratified-bootstrap
-    intervals, Kaplan-Meier env steps to 50% and 90% success), comparisons.csv (the experiment's
+    intervals, Kaplan-Meier env steps to 50%, 90% and 95% success), comparisons.csv (the experiment's
     pre-registered comparisons: effect, interval, Holm-adjusted p, power, verdict), learning_curves.png
     and performance_profile.png."""
 
