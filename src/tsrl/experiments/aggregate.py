@@ -321,7 +321,7 @@ _HOW_TO_READ = (
     "seed {seed}. **AUC** (the primary sample-efficiency metric): per seed, the area under its success "
     "curve over the evaluations every seed of the configuration reached, divided by their span of env "
     "steps (1 = success 1 at every evaluation). **Final success**: per seed, the mean of the last "
-    "{final} of those evaluations. **Env steps to 50% / 90% / 95%**: Kaplan-Meier median of each seed's first "
+    "{final} of those evaluations. **Env steps to {thresholds}**: Kaplan-Meier median of each seed's first "
     "evaluation at or above the threshold; a seed that never got there counts as censored at its last "
     "evaluation, not dropped; `k/n` seeds reached it; `> N` when fewer than half are known to have "
     "(the median lies beyond the N env steps evaluated). Wall time: training plus evaluations, per run."
@@ -379,7 +379,16 @@ def markdown_summary(
             cells.append(f"{shown} ({r[f'seeds_reaching_{pct}']}/{r['seeds']})")
         cells.append(f"{r['wall_time_s_mean']:.0f}")
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", _HOW_TO_READ.format(resamples=st.RESAMPLES, seed=st.SEED, final=FINAL_EVALS), ""]
+    lines += [
+        "",
+        _HOW_TO_READ.format(
+            resamples=st.RESAMPLES,
+            seed=st.SEED,
+            final=FINAL_EVALS,
+            thresholds=" / ".join(f"{round(t * 100)}%" for t in THRESHOLDS),
+        ),
+        "",
+    ]
     if eval_summary:
         lines += (
             ["## Evaluation-only arms", ""] + ev.markdown_table(eval_summary) + ["", _HOW_TO_READ_EVALS, ""]
