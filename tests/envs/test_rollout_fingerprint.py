@@ -2,8 +2,11 @@
 
 The reference was recorded before the env step was rebuilt from task files; the refactor kept it
 bit-identical (checked on the recording machine with `python tests/envs/rollout_fingerprint.py`).
-Here the comparison allows 1e-10, so that a machine whose BLAS rounds differently in the last bit
-still passes while any change of behaviour fails.
+Here the comparison allows 1e-4: another CPU rounds differently in the last bits, and the rollouts
+that turn the TCP (IK with orientation rows, ~100 steps with contacts) carry that drift forward (seen
+on unchanged code, an AMD EPYC with AVX-512 against the recording machine: up to 1.1e-6 by step 99 of
+pick_fs0_orient). A change of behaviour moves values by far more; bit-identity of a refactor is
+checked with the script on one machine, before and after the change.
 """
 
 import numpy as np
@@ -19,4 +22,4 @@ def test_rollouts_equal_the_recorded_reference(name, env_id, kwargs, policy):
             f"{name}/{k}" for k in arrays
         )
         for key, value in arrays.items():
-            np.testing.assert_allclose(value, reference[f"{name}/{key}"], rtol=0, atol=1e-10, err_msg=key)
+            np.testing.assert_allclose(value, reference[f"{name}/{key}"], rtol=0, atol=1e-4, err_msg=key)
