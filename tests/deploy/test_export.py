@@ -112,3 +112,15 @@ def test_tasks_the_runtime_cannot_measure_are_refused_in_one_line(env_id, why, t
         build_export(tmp_path / "export", env_id=env_id, obs="fs1")
     assert "\n" not in str(err.value)
     assert not (tmp_path / "export").exists()
+
+
+def test_a_task_that_observes_its_previous_actions_is_refused_in_one_line(tmp_path):
+    from tsrl.envs.tasks import load_task
+    from tsrl.exceptions import InvalidConfig
+
+    task = tmp_path / "history.toml"
+    task.write_text("previous_actions = 1\n" + load_task("UR5eReach-v0").source.read_text())
+    with pytest.raises(InvalidConfig, match="observes its previous actions") as err:
+        build_export(tmp_path / "export", env_id=str(task), obs="fs1")
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "export").exists()

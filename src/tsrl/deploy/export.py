@@ -149,6 +149,12 @@ def export_policy(
             f"task {task.name!r} commands a gripper; the deployment runtime commands a suction cup only, so "
             "it cannot be exported for deployment"
         )
+    if task.previous_actions:
+        raise InvalidConfig(
+            f"task {task.name!r} observes its previous actions (previous_actions = {task.previous_actions}); "
+            "the deployment runtime builds observations from task maps only, so it cannot be exported; "
+            "accepted: previous_actions = 0"
+        )
     if task.source is None:
         raise InvalidConfig(f"task {task.name!r} was built in code; export needs a task file")
     keys = tuple(cfg.agent.policy_inputs)

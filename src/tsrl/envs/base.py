@@ -27,7 +27,7 @@ from ..robots import Robot, load_robot
 from ..taskmaps import Stack, resolve_frame
 from .actions import ActionMap, action_mode
 from .goals import Goal
-from .observations import OBS_PRESETS, StepPlan
+from .observations import OBS_PRESETS, PREVIOUS_ACTIONS, StepPlan
 from .perturbations import Perturber
 from .randomization import Randomizer
 from .scenes import load_scene
@@ -168,9 +168,12 @@ class TaskEnv(gym.Env, EzPickle):
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
         self._steps = 0
+        #: The policy's last `task.previous_actions` actions (n, k), newest first: observation rows.
+        self._previous_actions = np.zeros((task.previous_actions, self.action_map.dim))
+        obs_dim = self.plan.obs_map.dim + self._previous_actions.size
         self.observation_space = spaces.Dict(
             {
-                "observation": spaces.Box(-np.inf, np.inf, (self.plan.obs_map.dim,), np.float64),
+                "observation": spaces.Box(-np.inf, np.inf, (obs_dim,), np.float64),
                 "achieved_goal": spaces.Box(-np.inf, np.inf, (self.goal.dim,), np.float64),
                 "desired_goal": spaces.Box(-np.inf, np.inf, (self.goal.dim,), np.float64),
             }
@@ -192,8 +195,12 @@ class TaskEnv(gym.Env, EzPickle):
 
     @property
     def observation_structure(self) -> dict[str, slice]:
-        """Which slice of `observation` each feature (task-map spec) occupies."""
-        return dict(self.plan.obs_map.slices)
+        """Which slice of `observation` each feature (task-map spec, or `previous_actions`) occupies."""
+        slices = dict(self.plan.obs_map.slices)
+        if self._previous_actions.size:
+            dim = self.plan.obs_map.dim
+            slices[PREVIOUS_ACTIONS] = slice(dim, dim + self._previous_actions.size)
+        return slices
 
     @property
     def goal_structure(self) -> dict[str, slice]:
@@ -213,6 +220,7 @@ class TaskEnv(gym.Env, EzPickle):
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
         self._steps = 0
+        self._previous_actions[:] = 0.0
         obs = self._observation()
         _, info = self.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
         info["ik_error"] = 0.0
@@ -222,6 +230,9 @@ class TaskEnv(gym.Env, EzPickle):
 
     def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         a = _checked_action(action, self._action_shape, self._action_low, self._action_high)
+        if self._previous_actions.size:
+            self._previous_actions[1:] = self._previous_actions[:-1]
+            self._previous_actions[0] = a
         perturb = self._perturb
         if perturb is not None:
             a = perturb.delayed(a)
@@ -277,8 +288,10 @@ class TaskEnv(gym.Env, EzPickle):
     def restore_state(self, state: np.ndarray) -> dict[str, np.ndarray]:
         """Writes a full physics state (mujoco.mj_getState with mjSTATE_INTEGRATION: time, qpos, qvel,
         act, warm start, ctrl, mocap poses, ...) into the simulation and returns its observation, e.g.
-        a demonstration's state to start an episode from (Nair et al. 2018's resets)."""
+        a demonstration's state to start an episode from (Nair et al. 2018's resets). The previous
+        actions (`Task.previous_actions`) are not part of the state: they restart at zero."""
         mujoco.mj_setState(self.model, self.data, np.asarray(state, dtype=np.float64), STATE_SPEC)
+        self._previous_actions[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
         return self._observation()
@@ -334,11 +347,14 @@ class TaskEnv(gym.Env, EzPickle):
         return workspace_camera(self.model, np.vstack([corners, tcp]), base)
 
     def _observation(self) -> dict[str, np.ndarray]:
-        """Fresh copies of the last evaluation's observation (with this step's noise) and goals."""
+        """Fresh copies of the last evaluation's observation (with this step's noise, then the previous
+        actions) and goals."""
         observation, achieved, desired = self.plan.views
+        if self._perturb is not None:
+            observation = observation + self._perturb.noise
         return {
-            "observation": observation + self._perturb.noise
-            if self._perturb is not None
+            "observation": np.concatenate([observation, self._previous_actions.ravel()])
+            if self._previous_actions.size
             else observation.copy(),
             "achieved_goal": achieved.copy(),
             "desired_goal": desired.copy(),

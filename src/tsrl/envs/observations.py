@@ -35,6 +35,10 @@ OBS_PRESETS: dict[str, str] = {
     "pick_phi_plus": "pick_phi, positionDiff(box, tcp), velocity(position(box)), suction(suction)",
 }
 
+#: The name of the observation rows that hold the policy's previous actions (`Task.previous_actions`),
+#: after the task maps' rows.
+PREVIOUS_ACTIONS = "previous_actions"
+
 
 def parse_observation(spec: str, model: mujoco.MjModel, joints: tuple[str, ...] | None = None) -> Stack:
     """The observation's Stack of a spec that may name OBS_PRESETS (tsrl.taskmaps.parse_spec)."""

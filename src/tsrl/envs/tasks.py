@@ -264,6 +264,8 @@ class Task:
         randomize: perturbations of the world per episode (none by default).
         solver: a built-in task whose scripted solver demonstrates this one (e.g. a copy of it with
             a [randomize] table); empty: the task's own, where it is built in.
+        previous_actions: the observation ends with the policy's last n actions, newest first (zeros
+            at reset), so that a policy acting through action latency sees the actions still in flight.
         description: one line shown in listings.
     """
 
@@ -283,6 +285,7 @@ class Task:
     frame: Literal["world", "base"] = "world"
     randomize: Randomize = field(default_factory=Randomize)
     solver: str = ""
+    previous_actions: int = 0
     description: str = ""
     #: The file the task was loaded from (scene paths are relative to it); None for tasks in code.
     source: Path | None = field(default=None, compare=False)
@@ -388,6 +391,11 @@ def _validate(task: Task) -> None:
             f"{', '.join(BUILTIN_TASKS)}"
         )
     check_positive("episode_steps", task.episode_steps)
+    if isinstance(task.previous_actions, bool) or not 0 <= task.previous_actions < task.episode_steps:
+        raise InvalidConfig(
+            f"previous_actions = {task.previous_actions!r}; accepted: an integer from 0 to episode_steps - 1 "
+            f"= {task.episode_steps - 1}"
+        )
     check_positive("control_dt", task.control_dt)
     check_positive("success.position", task.success.position)
     check_positive("success.orientation", task.success.orientation)
