@@ -156,6 +156,16 @@ def test_an_experiment_evaluates_its_evaluation_only_arms_and_reports_them(tmp_p
     assert (exp_dir / "robustness__observation_noise.png").is_file()
     again = run_tsrl("experiment", str(definition), "--workers", "1", "--out-dir", str(tmp_path))
     assert again.returncode == 0 and "evaluated" not in again.stderr  # kept, not recomputed
+    (exp_dir / "evaluations.csv").unlink()  # the same evaluations on two processes: the same rows
+    parallel = run_tsrl(
+        "experiment", str(definition), "--workers", "2", "--out-dir", str(tmp_path), timeout=300
+    )
+    assert parallel.returncode == 0 and parallel.stderr.count("evaluated ") == 6, parallel.stderr
+    with open(exp_dir / "evaluations.csv") as f:
+        rows_2 = list(csv.DictReader(f))
+    assert [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows_2] == [
+        {k: v for k, v in r.items() if k != "wall_time_s"} for r in rows
+    ]
 
 
 def test_an_evaluation_arm_of_another_layout_is_refused_when_the_file_loads(tmp_path):

@@ -7,6 +7,7 @@ work). Bad input raises TsrlError, which tsrl.cli turns into one line on stderr 
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +33,8 @@ class Experiment:
     go on; then the evaluation-only arms ([[evaluate]]) are evaluated on the finished runs, into
     evaluations.csv (kept across calls), and the report is written (tsrl report)."""
     workers: Annotated[int | None, arg(metavar="N")] = None
-    """Runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray)."""
+    """Runs at a time (default: one per CPU core locally; the cluster's CPUs with --ray), and runs
+    evaluated at a time by the evaluation-only arms (local processes; one with --ray by default)."""
     ray: Annotated[str | None, arg(metavar="ADDRESS|local")] = None
     """Run on the Ray cluster at ADDRESS (e.g. ray://head:10001 or auto), or on a new local Ray instance
     with 'local' (needs pip install 'tsrl[ray]'); default: local worker processes."""
@@ -89,7 +91,8 @@ def _cmd_experiment(args: Experiment) -> int:
     if exp.evaluate:  # the evaluation-only arms, on the runs at their budget
         from .evaluations import run_evaluations
 
-        run_evaluations(exp, exp_dir, sys.stderr)
+        workers = args.workers or (1 if args.ray is not None else len(os.sched_getaffinity(0)))
+        run_evaluations(exp, exp_dir, sys.stderr, workers)
     if args.report and any(o.env_steps > 0 for o in outcomes):
         from .aggregate import write_report
 

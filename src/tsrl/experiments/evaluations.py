@@ -89,18 +89,21 @@ def evaluation_rows(
     ]
 
 
-def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO) -> Path | None:
+def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO, workers: int = 1) -> Path | None:
     """The [[evaluate]] arms of `exp` on the finished runs in `exp_dir`, into evaluations.csv (written
     after each run: an interrupted phase resumes; rows of a run at the same checkpoint and episodes are
-    kept, not recomputed). Runs not at their budget are left out and said. Returns the file, None
-    without [[evaluate]]."""
+    kept, not recomputed). Runs not at their budget are left out and said. With `workers` > 1 the
+    runs' evaluations go to that many spawned processes (one torch thread each); the rows, each from
+    its own seeded episodes, are the same, and the file lists them in the same order (evaluation,
+    seed, label) either way. Returns the file, None without [[evaluate]]."""
     from .runner import checkpoint_steps
 
     if not exp.evaluate:
         return None
     path = exp_dir / EVALUATIONS_CSV
     table = {(r["label"], int(r["seed"])): r for r in read_evaluations(path)}
-    wanted = set(exp.eval_arms())
+    order = {label: i for i, label in enumerate(exp.eval_arms())}
+    jobs: list[tuple[Any, ...]] = []
     for e in exp.evaluate:
         tasks, labels = evaluation_tasks(exp, e), e.labels()
         for cfg in exp.arm_runs(e.arm, exp_dir.resolve()):
@@ -115,13 +118,53 @@ def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO) -> Pat
                 for r in old
             ):
                 continue
-            rows = evaluation_rows(run_dir, tasks, labels, e.name, e.arm, e.perturb, e.episodes, fresh=True)
-            for row in rows:
-                table[row["label"], cfg.seed] = row
-            write_evaluations(path, [r for k, r in table.items() if k[0] in wanted])
-            shown = ", ".join(f"{r['label']} {r['success_rate']:.2f}" for r in rows)
-            print(f"evaluated {cfg.run_name}: {shown}", file=stream)
+            jobs.append((run_dir, tasks, labels, e.name, e.arm, e.perturb, e.episodes))
+
+    def keep(run_name: str, rows: list[dict[str, Any]]) -> None:
+        for row in rows:
+            table[row["label"], int(row["seed"])] = row
+        kept = [r for k, r in table.items() if k[0] in order]
+        write_evaluations(path, sorted(kept, key=lambda r: (order[r["label"]], int(r["seed"]))))
+        shown = ", ".join(f"{r['label']} {r['success_rate']:.2f}" for r in rows)
+        print(f"evaluated {run_name}: {shown}", file=stream)
+
+    if workers <= 1 or len(jobs) <= 1:
+        for job in jobs:
+            keep(*_evaluate_job(job))
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(
+            min(workers, len(jobs)), mp_context=mp.get_context("spawn"), initializer=_one_thread
+        ) as pool:
+            futures = [pool.submit(_evaluate_job, job) for job in jobs]
+            try:
+                for future in as_completed(futures):
+                    keep(*future.result())
+            except BaseException:
+                for future in futures:
+                    future.cancel()
+                raise
     return path if path.is_file() else None
+
+
+def _evaluate_job(job: tuple[Any, ...]) -> tuple[str, list[dict[str, Any]]]:
+    """The run's name and evaluation_rows of one (run, [[evaluate]] arm), with fresh episodes."""
+    run_dir, tasks, labels, evaluation, arm, perturbation, episodes = job
+    rows = evaluation_rows(run_dir, tasks, labels, evaluation, arm, perturbation, episodes, fresh=True)
+    return run_dir.name, rows
+
+
+def _one_thread() -> None:
+    """A spawned evaluation worker: one thread per BLAS/OpenMP pool and for torch."""
+    import os
+
+    for key in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[key] = "1"
+    import torch
+
+    torch.set_num_threads(1)
 
 
 def profile(
