@@ -214,14 +214,18 @@ def _strip(ax: Any, values: list[np.ndarray], labels: list[str], cols: list[str]
             [i], est.point, yerr=[[est.point[0] - est.low[0]], [est.high[0] - est.point[0]]], fmt="_",
             color="black", markersize=14, capsize=3, linewidth=1,
         )  # fmt: skip
-    ticks = [textwrap.fill(label, TICK_WIDTH) for label in labels]
+    ticks = [
+        "\n".join(textwrap.fill(part, TICK_WIDTH, break_long_words=False) for part in label.split(" / "))
+        for label in labels
+    ]  # a variant (" / key=value") on a line of its own
     slanted = len(labels) > 2
     ax.set_xticks(
         range(len(labels)),
         ticks,
         fontsize=7,
-        rotation=30 if slanted else 0,
+        rotation=40 if slanted else 0,
         ha="right" if slanted else "center",
+        rotation_mode="anchor" if slanted else "default",  # a wrapped label turns as one block
     )
     ax.set_xlim(-0.6, len(labels) - 0.4)
     ax.set_ylim(-0.02, 1.02)
