@@ -25,6 +25,9 @@ SUFFIX = ".toml"
 EXPERIMENT_FILE = "experiment.json"
 #: Folder of an experiment's recorded demonstrations ([demos]), inside its results folder.
 DEMOS_DIR = "demos"
+#: Environment of an experiment's worker processes (training and evaluation), set before they import
+#: torch: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 #: The grid axes of strings; a definition file may give one as a single string.
 STRING_AXES: tuple[str, ...] = ("env", "obs", "action", "algo")

@@ -24,7 +24,7 @@ from ..agents.run_folder import CONFIG_FILE, load_config, with_task_copy
 from ..agents.transfer import EvalTask, Perturbation, check_layout, eval_task, sweep
 from ..files import write_atomic
 from . import statistics as st
-from .config import ExperimentConfig, Key, evaluation_tasks
+from .config import WORKER_ENV, ExperimentConfig, Key, evaluation_tasks
 
 EVALUATIONS_CSV = "evaluations.csv"
 EVAL_SUMMARY_CSV = "evaluations_summary.csv"
@@ -160,8 +160,7 @@ def _one_thread() -> None:
     """A spawned evaluation worker: one thread per BLAS/OpenMP pool and for torch."""
     import os
 
-    for key in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ[key] = "1"
+    os.environ.update(WORKER_ENV)
     import torch
 
     torch.set_num_threads(1)

@@ -33,11 +33,8 @@ from ..agents.run_folder import read_progress
 from ..exceptions import InvalidConfig
 from ..files import write_atomic
 from ..signals import in_main_thread
-from .config import EXPERIMENT_FILE, DemoRecipe, ExperimentConfig, Key, config_labels
+from .config import EXPERIMENT_FILE, WORKER_ENV, DemoRecipe, ExperimentConfig, Key, config_labels
 from .runner import ERROR_FILE, RunOutcome, checkpoint_steps, run_one, run_state
-
-#: Environment of worker processes: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
-_WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
 def run_experiment(
@@ -250,8 +247,8 @@ class _Worker:
     def __init__(self, ctx: mp.context.SpawnContext):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child,), daemon=True)
-        saved = {k: os.environ.get(k) for k in _WORKER_ENV}
-        os.environ.update(_WORKER_ENV)  # inherited by the child before it imports torch
+        saved = {k: os.environ.get(k) for k in WORKER_ENV}
+        os.environ.update(WORKER_ENV)  # inherited by the child before it imports torch
         try:
             self.proc.start()
         finally:
