@@ -94,8 +94,8 @@ def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO, worker
     after each run: an interrupted phase resumes; rows of a run at the same checkpoint and episodes are
     kept, not recomputed). Runs not at their budget are left out and said. With `workers` > 1 the
     runs' evaluations go to that many spawned processes (one torch thread each); the rows, each from
-    its own seeded episodes, are the same, and the file lists them in the same order (evaluation,
-    seed, label) either way. Returns the file, None without [[evaluate]]."""
+    its own seeded episodes, are the same, and the file lists them in one order either way (by
+    label, as `exp.eval_arms()` orders them, then seed). Returns the file, None without [[evaluate]]."""
     from .runner import checkpoint_steps
 
     if not exp.evaluate:
