@@ -7,7 +7,6 @@ work). Bad input raises TsrlError, which tsrl.cli turns into one line on stderr 
 from __future__ import annotations
 
 import importlib.util
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,9 +88,10 @@ def _cmd_experiment(args: Experiment) -> int:
         return EXIT_INTERRUPTED
     exp_dir = args.out_dir / exp.name
     if exp.evaluate:  # the evaluation-only arms, on the runs at their budget
+        from .config import local_workers
         from .evaluations import run_evaluations
 
-        workers = args.workers or (1 if args.ray is not None else len(os.sched_getaffinity(0)))
+        workers = 1 if args.ray is not None and args.workers is None else local_workers(args.workers)
         run_evaluations(exp, exp_dir, sys.stderr, workers)
     if args.report and any(o.env_steps > 0 for o in outcomes):
         from .aggregate import write_report

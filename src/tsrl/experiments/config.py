@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,12 @@ DEMOS_DIR = "demos"
 #: Environment of an experiment's worker processes (training and evaluation), set before they import
 #: torch: one thread per BLAS/OpenMP pool (torch_threads = 1 in TrainConfig).
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def local_workers(workers: int | None) -> int:
+    """Local worker processes for `--workers`: as given, by default one per core available to us."""
+    return workers or len(os.sched_getaffinity(0))
+
 
 #: The grid axes of strings; a definition file may give one as a single string.
 STRING_AXES: tuple[str, ...] = ("env", "obs", "action", "algo")

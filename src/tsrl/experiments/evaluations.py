@@ -143,8 +143,7 @@ def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO, worker
                 for future in as_completed(futures):
                     keep(*future.result())
             except BaseException:
-                for future in futures:
-                    future.cancel()
+                pool.shutdown(cancel_futures=True)  # the running ones finish; none starts
                 raise
     return path if path.is_file() else None
 

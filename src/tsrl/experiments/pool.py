@@ -33,7 +33,15 @@ from ..agents.run_folder import read_progress
 from ..exceptions import InvalidConfig
 from ..files import write_atomic
 from ..signals import in_main_thread
-from .config import EXPERIMENT_FILE, WORKER_ENV, DemoRecipe, ExperimentConfig, Key, config_labels
+from .config import (
+    EXPERIMENT_FILE,
+    WORKER_ENV,
+    DemoRecipe,
+    ExperimentConfig,
+    Key,
+    config_labels,
+    local_workers,
+)
 from .runner import ERROR_FILE, RunOutcome, checkpoint_steps, run_one, run_state
 
 
@@ -76,7 +84,7 @@ def run_experiment(
         def backend(n: int) -> _Backend:
             if ray_address is not None:
                 return _RayPool(exp_dir, ray_address, workers)
-            return _LocalPool(exp_dir, min(workers or len(os.sched_getaffinity(0)), n))
+            return _LocalPool(exp_dir, min(local_workers(workers), n))
 
         first = [cfg for cfg in todo if cfg.init_from is None]
         if first:
