@@ -121,6 +121,16 @@ def task_copy(run_dir: Path) -> tuple[Path | None, list[str]]:
     return copy, _changes(run_dir, rows)
 
 
+def records_files_of(run_dir: Path, task: str | Path) -> bool:
+    """Whether the run's record holds the files that `task` reads now, by role and content (sha256),
+    wherever they lie: the same task file read from another checkout's path is the same task."""
+    rows, _ = read_record(run_dir)
+    if rows is None:
+        return False
+    recorded = sorted((tuple(row["roles"]), row["sha256"]) for row in rows)
+    return recorded == sorted((f.roles, _sha256(f.path)) for f in task_files(task))
+
+
 def recorded_task(path: str | Path) -> Task | None:
     """The Task of a task file copied into a run's task folder, its robot file from its copy and its
     scene as `with_task_copy` reads it (where it lies while unchanged, else its copy); None for any

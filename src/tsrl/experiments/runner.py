@@ -25,6 +25,7 @@ from ..agents.run_folder import (
     read_progress,
     read_state,
 )
+from ..agents.task_record import records_files_of
 from ..agents.training import TrainingInterrupted, resume, train
 from ..exceptions import InvalidConfig
 
@@ -64,7 +65,8 @@ def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "pa
     """new: no run in the folder; finished: its latest checkpoint reached `cfg`'s budget; partial: it
     has to be resumed (interrupted, failed, or a budget raised since).
 
-    Raises InvalidConfig if the folder holds a run of another config (anything but the budget differs).
+    Raises InvalidConfig if the folder holds a run of another config (anything but the budget differs;
+    a task file is the same when its files' contents are, from whichever path: another checkout's).
     """
     if not (run_dir / CONFIG_FILE).is_file():
         return "new"
@@ -72,6 +74,13 @@ def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "pa
     theirs, ours = existing.to_dict(), cfg.to_dict()
     theirs.pop("total_timesteps")
     ours.pop("total_timesteps")
+    if (
+        existing.is_task_file
+        and cfg.is_task_file
+        and theirs["env_id"] != ours["env_id"]
+        and records_files_of(run_dir, cfg.env_id)
+    ):
+        theirs["env_id"] = ours["env_id"]
     if theirs != ours:
         diff = ", ".join(f"{k}: {theirs[k]!r} there, {ours[k]!r} here" for k in ours if theirs[k] != ours[k])
         raise InvalidConfig(
