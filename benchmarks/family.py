@@ -6,6 +6,8 @@ reached 95 % within the task's target budget.
     python benchmarks/family.py                      # every task, 5 seeds, its target budget
     python benchmarks/family.py --tasks PandaPush-v0 --seeds 0 1 --jobs 2
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast   # issue 27's preset as the remedy
+    python benchmarks/family.py --tasks PandaStack-v0 --demos-reset-prob 0.5 --demos-reset-curriculum-steps 100000
+                                                     # resets to demonstration states, a reverse curriculum
     python benchmarks/learning.py family ...         # the same
 
 | task | target (env steps, every seed at 95 %) | best anchor known |
@@ -45,6 +47,8 @@ TASKS: dict[str, tuple[int, int]] = {
 }
 EVAL_EPISODES = 100
 DEMO_EPISODES = 100
+#: Resets to demonstration states: (probability, reverse-curriculum env steps), or None.
+DemoResets = tuple[float, int] | None
 
 
 def record(task: str, out_dir: Path, episodes: int = DEMO_EPISODES) -> Path:
@@ -62,14 +66,24 @@ def record(task: str, out_dir: Path, episodes: int = DEMO_EPISODES) -> Path:
 
 
 def configs(
-    task: str, seeds: list[int], total: int, eval_freq: int, demos: Path, learner: Learner = "paper"
+    task: str,
+    seeds: list[int],
+    total: int,
+    eval_freq: int,
+    demos: Path,
+    learner: Learner = "paper",
+    resets: DemoResets = None,
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
-    demonstration resets and symmetric sampling are the remedies the issue names) with the
-    demonstrations, the task's own observation and action."""
+    symmetric sampling is a remedy the issue names) with the demonstrations, the task's own
+    observation and action; `resets` (probability, curriculum env steps): episodes started from
+    demonstration states, the other remedy (Nair et al.; RFCL's reverse curriculum where the steps
+    are > 0), None: the learner's."""
     from tsrl.envs import load_task
 
-    agent = AgentConfig(learner=learner, demos=DemoConfig(path=str(demos)))
+    prob, curriculum = resets if resets is not None else (None, 0)
+    demo_config = DemoConfig(path=str(demos), reset_prob=prob, reset_curriculum_steps=curriculum)
+    agent = AgentConfig(learner=learner, demos=demo_config)
     return [
         TrainConfig(
             env_id=f"tsrl/{task}",
@@ -83,6 +97,15 @@ def configs(
         )
         for s in seeds
     ]
+
+
+def run_parent(task: str, demos: int, resets: DemoResets) -> str:
+    """The folder of a task's runs under --out-dir: one per variant, since a run's name does not say
+    its demonstration count or resets (a finished run found there is reused)."""
+    name = task if demos == DEMO_EPISODES else f"{task}-demos-{demos}"
+    if resets is not None:
+        name += f"-resets-{resets[0]:g}" + (f"-curriculum-{resets[1]}" if resets[1] else "")
+    return name
 
 
 def run_one(args: tuple[TrainConfig, Path]) -> Path:
@@ -112,17 +135,39 @@ def main(argv: list[str] | None = None) -> None:
         default=DEMO_EPISODES,
         help=f"scripted demonstrations per task (default {DEMO_EPISODES}; more: issue 24's first remedy)",
     )
+    parser.add_argument(
+        "--demos-reset-prob",
+        type=float,
+        default=None,
+        help="episodes started from a demonstration's state with this probability (issue 24's "
+        "reset remedy; default: the learner's)",
+    )
+    parser.add_argument(
+        "--demos-reset-curriculum-steps",
+        type=int,
+        default=0,
+        help="with --demos-reset-prob: the restored step drawn from a window at the demonstration's "
+        "end that grows to the whole episode over this many env steps (a reverse curriculum, RFCL)",
+    )
     add_save_argument(parser, "family")
     args = parser.parse_args(argv)
     if args.demos < 1:
         parser.error(f"--demos must be >= 1; got {args.demos}")
+    if args.demos_reset_curriculum_steps and args.demos_reset_prob is None:
+        parser.error(
+            f"--demos-reset-curriculum-steps {args.demos_reset_curriculum_steps} needs --demos-reset-prob "
+            "(a reset curriculum restores demonstration states); accepted: --demos-reset-prob P in (0, 1]"
+        )
+    resets = (
+        None if args.demos_reset_prob is None else (args.demos_reset_prob, args.demos_reset_curriculum_steps)
+    )
     work = []
     for task in args.tasks:
         target, eval_freq = TASKS[task]
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
-        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner)
-        parent = args.out_dir / (task if args.demos == DEMO_EPISODES else f"{task}-demos-{args.demos}")
+        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner, resets)
+        parent = args.out_dir / run_parent(task, args.demos, resets)
         work += [(cfg, parent) for cfg in cfgs]
     print(
         f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}", flush=True
@@ -139,6 +184,7 @@ def main(argv: list[str] | None = None) -> None:
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
         label = f"tsrl/{task} with {args.demos} demonstrations, learner {args.learner}"
+        label += "" if resets is None else f", resets {resets[0]:g} (curriculum {resets[1]:,} env steps)"
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

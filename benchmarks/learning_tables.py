@@ -331,7 +331,9 @@ def table_family(data_dir: Path) -> list[str]:
         demos = Path(config["agent"]["demos"]["path"] or "").stem.rsplit("-", 1)[-1]
         resets = config["agent"]["demos"].get("reset_prob")
         extra = [f"learner {learner}"] if learner != "paper" else []
+        curriculum = config["agent"]["demos"].get("reset_curriculum_steps", 0)
         extra += [f"resets {resets}"] if resets else []
+        extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
         extra += [f"{demos} demonstrations"] if demos.isdigit() and int(demos) != 100 else []
         name = f"`{config['env_id']}`" + (f" ({', '.join(extra)})" if extra else "")
         by_task.setdefault(name, []).append(run_dir)
