@@ -5,8 +5,11 @@ policy's deterministic episodes, each failed one put in one class by what the ob
 
 Per run: the newest usable checkpoint's policy on `--episodes` fresh evaluation episodes (the seeds
 `tsrl evaluate` uses, none seen in training's evaluations), the run's own task, observation and
-action. The object is the body whose position is the task's goal (`[goal] map = "position(<body>)"`).
-Classes of a failed episode, in this order:
+action. The objects are the bodies whose positions are in the task's goal (`[goal] map =
+"position(<body>)"`, several for a stack, "position(peg), quaternion(peg)" for the peg: its position
+only); a goal of several objects gives one row per object ("run (box_b)"), each object's episodes
+classed by its own position and goal, "success" meaning that object ended within the position
+tolerance. Classes of an object's failed episode, in this order:
 
 - *not moved*: the object never moved 1 cm from where it started;
 - *reached, then lost*: it was within the success tolerance at some step but not at the last;
@@ -37,12 +40,27 @@ MOVED = 0.01  # m
 CLASSES = ("success", "not moved", "reached, then lost", "short of the goal", "moved, not towards the goal")
 
 
-def goal_body(env: TaskEnv) -> str:
-    """The body whose position is the goal ("position(box)" -> "box"); ValueError for other goals."""
+def goal_objects(env: TaskEnv) -> list[tuple[str, slice]]:
+    """The bodies whose positions the goal holds, each with its slice of the desired goal
+    ("position(box), position(box_b)" -> [("box", 0:3), ("box_b", 3:6)]; a quaternion part is skipped);
+    ValueError for a goal without a position(<body>)."""
     spec = env.task.goal.map
-    if not (spec.startswith("position(") and spec.endswith(")") and "," not in spec):
-        raise ValueError(f"{env.task.name}: goal map {spec!r}; failure classes need a goal position(<body>)")
-    return spec[len("position(") : -1]
+    found, start = [], 0
+    for part in (p.strip() for p in spec.split("),")):
+        name, _, arg = part.rstrip(")").partition("(")
+        width = 4 if name == "quaternion" else 3
+        if name == "position" and arg and "," not in arg:
+            found.append((arg, slice(start, start + 3)))
+        elif name not in ("position", "quaternion"):
+            found = []
+            break
+        start += width
+    if not found:
+        raise ValueError(
+            f"{env.task.name}: goal map {spec!r}; failure classes need a goal of position(<body>) parts "
+            "(with quaternion(<body>) parts skipped)"
+        )
+    return found
 
 
 def classify(start: np.ndarray, path: np.ndarray, goal: np.ndarray, tolerance: float) -> str:
@@ -60,40 +78,47 @@ def classify(start: np.ndarray, path: np.ndarray, goal: np.ndarray, tolerance: f
     return "moved, not towards the goal"
 
 
-def failure_modes(run_dir: Path, episodes: int) -> dict[str, Any]:
-    """One row: the run, its env steps, and per class the number of episodes."""
+def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
+    """One row per goal object: the run (with the object's name where the goal has several), its env
+    steps, and per class the number of episodes."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped
     assert isinstance(base, TaskEnv)
-    body = goal_body(base)
-    counts = dict.fromkeys(CLASSES, 0)
-    steps_to_success = []
+    objects = goal_objects(base)
+    tolerance = base.task.success.position
+    counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
+    steps_to_success: list[list[int]] = [[] for _ in objects]
     for seed in fresh_eval_seeds(cfg.seed, episodes):
         obs, _ = env.reset(seed=seed)
-        start = base.data.body(body).xpos.copy()
+        starts = [base.data.body(body).xpos.copy() for body, _ in objects]
         goal = np.asarray(obs["desired_goal"], dtype=float)
-        path = []
+        paths: list[list[np.ndarray]] = [[] for _ in objects]
         done = False
         while not done:
             obs, _, terminated, truncated, _ = env.step(policy_action(model, normalizer, obs))
-            path.append(base.data.body(body).xpos.copy())
+            for path, (body, _) in zip(paths, objects, strict=True):
+                path.append(base.data.body(body).xpos.copy())
             done = terminated or truncated
-        positions = np.array(path)
-        kind = classify(start, positions, goal, base.task.success.position)
-        counts[kind] += 1
-        if kind == "success":
-            within = np.linalg.norm(positions - goal, axis=1) <= base.task.success.position
-            steps_to_success.append(int(np.argmax(within)) + 1)
+        for i, (_, part) in enumerate(objects):
+            positions = np.array(paths[i])
+            kind = classify(starts[i], positions, goal[part], tolerance)
+            counts[i][kind] += 1
+            if kind == "success":
+                within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
+                steps_to_success[i].append(int(np.argmax(within)) + 1)
     env.close()
-    return {
-        "run": run_dir.name,
-        "env_id": cfg.env_id,
-        "env_steps": checkpoint.state.env_steps,
-        "episodes": episodes,
-        **counts,
-        "median_steps_to_success": float(np.median(steps_to_success)) if steps_to_success else float("nan"),
-    }
+    return [
+        {
+            "run": run_dir.name + (f" ({body})" if len(objects) > 1 else ""),
+            "env_id": cfg.env_id,
+            "env_steps": checkpoint.state.env_steps,
+            "episodes": episodes,
+            **count,
+            "median_steps_to_success": float(np.median(steps)) if steps else float("nan"),
+        }
+        for (body, _), count, steps in zip(objects, counts, steps_to_success, strict=True)
+    ]
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
@@ -128,7 +153,7 @@ def main() -> None:
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1; got {args.episodes}")
     with Measurement(args.save, __file__, "benchmarks/failure_modes.py:table", "docs/training.md") as out:
-        rows = [failure_modes(run, args.episodes) for run in args.runs]
+        rows = [row for run in args.runs for row in failure_modes(run, args.episodes)]
         if out is not None:
             write_rows(out / DATA_CSV, rows)
     print("\n".join(render(rows)))

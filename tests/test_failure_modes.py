@@ -1,0 +1,66 @@
+"""benchmarks/failure_modes.py: which goal objects it classes, and the classes of hand-made paths."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType, SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tsrl.envs.base import TaskEnv
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _module() -> ModuleType:
+    sys.path.insert(0, str(ROOT / "benchmarks"))  # its sibling `record`
+    spec = importlib.util.spec_from_file_location("failure_modes", ROOT / "benchmarks" / "failure_modes.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+failure_modes = _module()
+
+
+@pytest.mark.parametrize(
+    ("task", "expected"),
+    [
+        ("PandaPush-v0", [("box", slice(0, 3))]),
+        ("PandaStack-v0", [("box", slice(0, 3)), ("box_b", slice(3, 6))]),
+        ("PandaPegInsert-v0", [("peg", slice(0, 3))]),
+    ],
+)
+def test_goal_objects_are_the_goal_positions_bodies_and_their_goal_slices(
+    task: str, expected: list[tuple[str, slice]]
+) -> None:
+    env = TaskEnv(task)
+    try:
+        objects = failure_modes.goal_objects(env)
+        obs, _ = env.reset(seed=3)
+        for body, part in objects:  # each slice is that body's goal: the achieved goal holds its position
+            np.testing.assert_allclose(obs["achieved_goal"][part], env.data.body(body).xpos, atol=1e-12)
+    finally:
+        env.close()
+    assert objects == expected
+
+
+@pytest.mark.parametrize("spec", ["positionDiff(box, target)", "velocity(position(box))", "quaternion(peg)"])
+def test_a_goal_without_a_body_position_is_refused(spec: str) -> None:
+    task = SimpleNamespace(name="X-v0", goal=SimpleNamespace(map=spec))
+    with pytest.raises(ValueError, match="X-v0: goal map .* failure classes need a goal of position"):
+        failure_modes.goal_objects(SimpleNamespace(task=task))
+
+
+def test_classes_of_hand_made_paths() -> None:
+    start, goal, tol = np.zeros(3), np.array([0.2, 0.0, 0.0]), 0.02
+    line = np.linspace(start, goal, 10)
+    assert failure_modes.classify(start, line, goal, tol) == "success"
+    assert failure_modes.classify(start, np.zeros((10, 3)) + 0.001, goal, tol) == "not moved"
+    assert failure_modes.classify(start, np.vstack([line, line[::-1]]), goal, tol) == "reached, then lost"
+    assert failure_modes.classify(start, line[:7], goal, tol) == "short of the goal"
+    assert failure_modes.classify(start, -line, goal, tol) == "moved, not towards the goal"
