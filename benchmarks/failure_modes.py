@@ -30,6 +30,7 @@ from typing import Any
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
+from learning_tables import family_variant
 from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
 from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
@@ -79,13 +80,15 @@ def classify(start: np.ndarray, path: np.ndarray, goal: np.ndarray, tolerance: f
 
 
 def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
-    """One row per goal object: the run (with the object's name where the goal has several), its env
-    steps, and per class the number of episodes."""
+    """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
+    resets say, and the object's name where the goal has several), its env steps, and per class the
+    number of episodes."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped
     assert isinstance(base, TaskEnv)
     objects = goal_objects(base)
+    variant = [", ".join(family_variant(cfg.to_dict()))] if family_variant(cfg.to_dict()) else []
     tolerance = base.task.success.position
     counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
     steps_to_success: list[list[int]] = [[] for _ in objects]
@@ -110,7 +113,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     env.close()
     return [
         {
-            "run": run_dir.name + (f" ({body})" if len(objects) > 1 else ""),
+            "run": _label(run_dir.name, [*variant, *([body] if len(objects) > 1 else [])]),
             "env_id": cfg.env_id,
             "env_steps": checkpoint.state.env_steps,
             "episodes": episodes,
@@ -119,6 +122,11 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
         }
         for (body, _), count, steps in zip(objects, counts, steps_to_success, strict=True)
     ]
+
+
+def _label(run: str, parts: list[str]) -> str:
+    """`run (part, part)`, or `run` without parts."""
+    return f"{run} ({', '.join(parts)})" if parts else run
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:

@@ -315,6 +315,21 @@ def table_own_robot(data_dir: Path) -> list[str]:
     return suite_lines("own_robot", saved_runs(data_dir))
 
 
+def family_variant(config: dict[str, Any]) -> list[str]:
+    """What sets a family run (benchmarks/family.py; its config.json as a dict) apart from the paper's
+    agent with 100 demonstrations, e.g. ["learner fast"], ["resets 0.5", "reverse curriculum over
+    100,000"]; [] for that agent. Its run name does not say the resets or the demonstration count."""
+    demos = config["agent"]["demos"]
+    count = Path(demos["path"] or "").stem.rsplit("-", 1)[-1]
+    learner = config["agent"].get("learner", "paper")
+    resets, curriculum = demos.get("reset_prob"), demos.get("reset_curriculum_steps", 0)
+    extra = [f"learner {learner}"] if learner != "paper" else []
+    extra += [f"resets {resets}"] if resets else []
+    extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
+    extra += [f"{count} demonstrations"] if count.isdigit() and int(count) != 100 else []
+    return extra
+
+
 def table_family(data_dir: Path) -> list[str]:
     """The manipulation family's summary (benchmarks/family.py): per task, its target budget (the
     runs' total env steps), the seeds run, each seed's success at the budget, env steps to 50 % and
@@ -327,14 +342,7 @@ def table_family(data_dir: Path) -> list[str]:
     by_task: dict[str, list[Path]] = {}
     for run_dir in saved_runs(data_dir):
         config = json.loads((run_dir / "config.json").read_text())
-        learner = config["agent"].get("learner", "paper")
-        demos = Path(config["agent"]["demos"]["path"] or "").stem.rsplit("-", 1)[-1]
-        resets = config["agent"]["demos"].get("reset_prob")
-        extra = [f"learner {learner}"] if learner != "paper" else []
-        curriculum = config["agent"]["demos"].get("reset_curriculum_steps", 0)
-        extra += [f"resets {resets}"] if resets else []
-        extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
-        extra += [f"{demos} demonstrations"] if demos.isdigit() and int(demos) != 100 else []
+        extra = family_variant(config)
         name = f"`{config['env_id']}`" + (f" ({', '.join(extra)})" if extra else "")
         by_task.setdefault(name, []).append(run_dir)
     for task, run_dirs in by_task.items():
