@@ -203,6 +203,23 @@ def test_reset_curriculum_starts_near_the_goal_and_widens(pick_demos):
     wrapped.close()
 
 
+def test_a_resumed_run_continues_its_reset_curriculum(reach_demos, tmp_path, monkeypatch):
+    from tsrl.agents.training import resume, train
+
+    demos = DemoConfig(path=str(reach_demos), reset_prob=1.0, reset_curriculum_steps=1000)
+    run_dir = train(tiny(total=100, demos=demos), tmp_path, progress_bar=False)
+    seen: list[int] = []  # the curriculum's env steps at each draw of the resumed run
+    draw = DemoResets.start_step
+
+    def recording(self: DemoResets) -> int:
+        seen.append(self.env_steps)
+        return draw(self)
+
+    monkeypatch.setattr(DemoResets, "start_step", recording)
+    resume(run_dir, total_timesteps=200, progress_bar=False)
+    assert seen and seen[0] == 100 and seen == sorted(seen) and seen[-1] <= 200
+
+
 def test_a_file_the_environment_does_not_reproduce_cannot_be_reset_to(pick_demos):
     from tsrl.agents.demo_files import load_demos
 

@@ -12,7 +12,9 @@ old ones included, can be reset to; the files need no state arrays.
 `DemoResets` wraps the training environment (not the evaluation ones): after the task's own reset,
 with probability `prob` it restores a demonstration state (a uniform episode and step, or with a
 reverse curriculum a step among the demonstration's last ones) and returns that state's observation.
-Its draws come from its own generator, seeded from the run's seed.
+Its draws come from its own generator, seeded from the run's seed. A resumed run continues the
+curriculum where its checkpoint left it (`continue_from`: the env steps done; the generator reseeded
+from the seed and the episodes done, as the environment is).
 
 `restore_state` writes a state into the environment through `TaskEnv.restore_state` (MuJoCo's
 `mj_setState` / `mj_forward`, then the task's observation of it).
@@ -91,9 +93,16 @@ class DemoResets(gym.Wrapper):
         self.states = states
         self.prob = prob
         self.curriculum_steps = curriculum_steps
+        self.seed = seed
         self.rng = np.random.default_rng([seed, 0xDE30])  # its own stream: the env's draws are unchanged
         self.env_steps = 0
         self.last_reset: tuple[int, int] | None = None
+
+    def continue_from(self, env_steps: int, episodes: int) -> None:
+        """A resumed run's wrapper: the curriculum at `env_steps` (the checkpoint's), its draws from a
+        generator seeded from (seed, `episodes` done), as the resumed environment's are."""
+        self.env_steps = env_steps
+        self.rng = np.random.default_rng([self.seed, 0xDE30, episodes])
 
     def start_step(self) -> int:
         """The demonstration step the next demonstration reset restores (drawn)."""

@@ -163,6 +163,8 @@ class _Session:
                 attach_bc_loss(model, cfg.agent.demos)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
+            if cfg.agent.demos.reset_prob:  # its reverse curriculum goes on, not from its start
+                self.venv.env_method("continue_from", state.env_steps, state.episodes)
         last_row = truncate_progress(self.run_dir, state.env_steps if checkpoint else -1)
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
         callback = _SafePointCallback(self, state, last_row)
