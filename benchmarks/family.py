@@ -47,8 +47,9 @@ TASKS: dict[str, tuple[int, int]] = {
 }
 EVAL_EPISODES = 100
 DEMO_EPISODES = 100
-#: Resets to demonstration states: (probability, reverse-curriculum env steps), or None.
-DemoResets = tuple[float, int] | None
+#: Resets to demonstration states: (probability, reverse-curriculum env steps, reverse-curriculum
+#: success rate: DemoConfig's reset_prob, reset_curriculum_steps, reset_curriculum_success), or None.
+DemoResets = tuple[float, int, float] | None
 
 
 def record(task: str, out_dir: Path, episodes: int = DEMO_EPISODES) -> Path:
@@ -76,13 +77,16 @@ def configs(
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
     symmetric sampling is a remedy the issue names) with the demonstrations, the task's own
-    observation and action; `resets` (probability, curriculum env steps): episodes started from
-    demonstration states, the other remedy (Nair et al.; RFCL's reverse curriculum where the steps
-    are > 0), None: the learner's."""
+    observation and action; `resets` (probability, curriculum env steps, curriculum success rate):
+    episodes started from demonstration states, the other remedy (Nair et al.; a reverse curriculum
+    paced by env steps where they are > 0, by success as RFCL's where the rate is > 0), None: the
+    learner's."""
     from tsrl.envs import load_task
 
-    prob, curriculum = resets if resets is not None else (None, 0)
-    demo_config = DemoConfig(path=str(demos), reset_prob=prob, reset_curriculum_steps=curriculum)
+    prob, steps, success = resets if resets is not None else (None, 0, 0.0)
+    demo_config = DemoConfig(
+        path=str(demos), reset_prob=prob, reset_curriculum_steps=steps, reset_curriculum_success=success
+    )
     agent = AgentConfig(learner=learner, demos=demo_config)
     return [
         TrainConfig(
@@ -105,6 +109,7 @@ def run_parent(task: str, demos: int, resets: DemoResets) -> str:
     name = task if demos == DEMO_EPISODES else f"{task}-demos-{demos}"
     if resets is not None:
         name += f"-resets-{resets[0]:g}" + (f"-curriculum-{resets[1]}" if resets[1] else "")
+        name += f"-paced-{resets[2]:g}" if resets[2] else ""
     return name
 
 
@@ -149,17 +154,28 @@ def main(argv: list[str] | None = None) -> None:
         help="with --demos-reset-prob: the restored step drawn from a window at the demonstration's "
         "end that grows to the whole episode over this many env steps (a reverse curriculum, RFCL)",
     )
+    parser.add_argument(
+        "--demos-reset-curriculum-success",
+        type=float,
+        default=0.0,
+        help="with --demos-reset-prob: a reverse curriculum paced by success instead (the window widens "
+        "by a tenth of the demonstration when the last 20 demonstration-started episodes succeed at "
+        "this rate; RFCL's advance on success)",
+    )
     add_save_argument(parser, "family")
     args = parser.parse_args(argv)
     if args.demos < 1:
         parser.error(f"--demos must be >= 1; got {args.demos}")
-    if args.demos_reset_curriculum_steps and args.demos_reset_prob is None:
-        parser.error(
-            f"--demos-reset-curriculum-steps {args.demos_reset_curriculum_steps} needs --demos-reset-prob "
-            "(a reset curriculum restores demonstration states); accepted: --demos-reset-prob P in (0, 1]"
-        )
+    for flag in ("demos_reset_curriculum_steps", "demos_reset_curriculum_success"):
+        if getattr(args, flag) and args.demos_reset_prob is None:
+            parser.error(
+                f"--{flag.replace('_', '-')} {getattr(args, flag)} needs --demos-reset-prob (a reset "
+                "curriculum restores demonstration states); accepted: --demos-reset-prob P in (0, 1]"
+            )
     resets = (
-        None if args.demos_reset_prob is None else (args.demos_reset_prob, args.demos_reset_curriculum_steps)
+        None
+        if args.demos_reset_prob is None
+        else (args.demos_reset_prob, args.demos_reset_curriculum_steps, args.demos_reset_curriculum_success)
     )
     work = []
     for task in args.tasks:
@@ -185,6 +201,7 @@ def main(argv: list[str] | None = None) -> None:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
         label = f"tsrl/{task} with {args.demos} demonstrations, learner {args.learner}"
         label += "" if resets is None else f", resets {resets[0]:g} (curriculum {resets[1]:,} env steps)"
+        label += f", paced by success {resets[2]:g}" if resets is not None and resets[2] else ""
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

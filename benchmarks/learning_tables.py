@@ -326,6 +326,8 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     extra = [f"learner {learner}"] if learner != "paper" else []
     extra += [f"resets {resets}"] if resets else []
     extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
+    paced = demos.get("reset_curriculum_success", 0.0)
+    extra += [f"reverse curriculum paced by success {paced:g}"] if resets and paced else []
     extra += [f"{count} demonstrations"] if count.isdigit() and int(count) != 100 else []
     return extra
 

@@ -220,6 +220,67 @@ def test_a_resumed_run_continues_its_reset_curriculum(reach_demos, tmp_path, mon
     assert seen and seen[0] == 100 and seen == sorted(seen) and seen[-1] <= 200
 
 
+def test_success_paced_curriculum_widens_only_after_enough_successes():
+    states = np.zeros((2, 51, 1))
+    wrapped = DemoResets(gym.make("tsrl/UR5eReach-v0"), states, 1.0, 0, seed=0, curriculum_success=0.75)
+    assert {wrapped.start_step() for _ in range(50)} == {49}
+    for outcome in [False] * 10 + [True] * 14:  # the last 20: 14 of 20 = 0.70 < 0.75
+        wrapped._pace(outcome)
+    assert wrapped.window == 1 and len(wrapped.outcomes) == 20
+    wrapped._pace(True)  # the last 20: 15 of 20 = 0.75
+    assert wrapped.window == 1 + 5 and wrapped.outcomes == []
+    assert {wrapped.start_step() for _ in range(400)} == set(range(44, 50))
+    for _ in range(20 * 12):  # ten strides reach the whole episode, and no further
+        wrapped._pace(True)
+    assert wrapped.window == 50 and min(wrapped.start_step() for _ in range(400)) == 0
+    wrapped.close()
+
+
+def test_success_paced_curriculum_counts_the_outcome_of_each_demonstration_started_episode(pick_demos):
+    from tsrl.agents.demo_files import load_demos
+
+    cfg = TrainConfig(env_id=PICK, obs="fs1")
+    demos = load_demos(pick_demos)
+    replay = make_env(cfg)
+    states = replay_states(replay, demos, str(pick_demos))
+    wrapped = DemoResets(make_env(cfg), states, 1.0, 0, seed=1, curriculum_success=0.5)
+    finals = []
+    for n in range(2):
+        wrapped.reset(seed=n)
+        episode, step = wrapped.last_reset
+        assert step == demos.episode_steps - 1  # the window's one step
+        done, t = False, step
+        while not done:  # the demonstration's last action, held to the episode's end
+            _, _, terminated, truncated, info = wrapped.step(demos.actions[episode, min(t, step)])
+            done, t = terminated or truncated, t + 1
+        finals.append(bool(info["is_success"]))
+    assert wrapped.outcomes == finals
+    for env in (replay, wrapped):
+        env.close()
+
+
+def test_a_resumed_run_continues_its_success_paced_curriculum(reach_demos, tmp_path, monkeypatch):
+    import pickle
+
+    from tsrl.agents.training import resume, train
+
+    demos = DemoConfig(path=str(reach_demos), reset_prob=1.0, reset_curriculum_success=0.5)
+    run_dir = train(tiny(total=100, demos=demos), tmp_path, progress_bar=False)
+    [saved] = sorted((run_dir / "checkpoints").glob("step_*/rng.pkl"))
+    curriculum = pickle.loads(saved.read_bytes())["demo_resets"]
+    assert curriculum["window"] == 1 and len(curriculum["outcomes"]) == 2  # two 50-step episodes
+    seen: list[int] = []  # outcomes counted at each draw of the resumed run
+    draw = DemoResets.start_step
+
+    def recording(self: DemoResets) -> int:
+        seen.append(len(self.outcomes))
+        return draw(self)
+
+    monkeypatch.setattr(DemoResets, "start_step", recording)
+    resume(run_dir, total_timesteps=200, progress_bar=False)
+    assert seen[0] == 2 and seen[-1] == 4
+
+
 def test_a_file_the_environment_does_not_reproduce_cannot_be_reset_to(pick_demos):
     from tsrl.agents.demo_files import load_demos
 
@@ -304,6 +365,15 @@ def test_bc_loss_works_with_tqc(reach_demos):
         ),
         (lambda p: AgentConfig(demos=DemoConfig(path=p, reset_curriculum_steps=100)), "with reset_prob None"),
         (lambda p: DemoConfig(path=p, reset_prob=1.5), r"reset_prob must be in \[0, 1\]"),
+        (
+            lambda p: DemoConfig(path=p, reset_curriculum_steps=100, reset_curriculum_success=0.5),
+            "one reverse curriculum, paced by env steps or by success",
+        ),
+        (
+            lambda p: AgentConfig(demos=DemoConfig(path=p, reset_curriculum_success=0.5)),
+            "demos reset_curriculum_success 0.5 with reset_prob None",
+        ),
+        (lambda p: DemoConfig(path=p, reset_curriculum_success=2.0), r"must be in \[0, 1\]; got 2.0"),
     ],
 )
 def test_bad_combinations_are_one_line(make, expected, reach_demos):

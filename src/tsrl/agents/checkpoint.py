@@ -47,6 +47,9 @@ from .run_folder import (
 )
 
 _RNG_KEYS = frozenset({"python", "numpy", "torch", "action_space"})
+#: rng.pkl's entry of a run with resets to demonstration states: the curriculum's state
+#: (DemoResets.curriculum_state), absent from other runs' checkpoints and from older ones.
+DEMO_RESETS = "demo_resets"
 
 
 @dataclass(frozen=True)
@@ -108,7 +111,7 @@ def verify_checkpoint(path: Path, normalized: bool, for_training: bool) -> Check
             path / REPLAY_BUFFER, f"holds {stored} transitions, state.json counts {state.env_steps} env steps"
         )
     rng = _load_pickle(path / RNG, dict)
-    if set(rng) != _RNG_KEYS:
+    if set(rng) - {DEMO_RESETS} != _RNG_KEYS:
         raise DamagedCheckpoint(path / RNG, f"expected RNG states {sorted(_RNG_KEYS)}; got {sorted(rng)}")
     return Checkpoint(path, state, normalizer, buffer, rng)
 
@@ -206,12 +209,16 @@ def _load_pickle(path: Path, expected: type) -> Any:
 
 
 def _rng_state(model: OffPolicyAlgorithm) -> dict[str, Any]:
-    return {
+    state = {
         "python": random.getstate(),
         "numpy": np.random.get_state(),
         "torch": th.get_rng_state(),
         "action_space": model.action_space.np_random.bit_generator.state,
     }
+    env = model.get_env()
+    if env is not None and env.has_attr("curriculum_state"):  # tsrl.agents.demo_resets.DemoResets
+        state[DEMO_RESETS] = env.env_method("curriculum_state")[0]
+    return state
 
 
 def _set_rng_state(model: OffPolicyAlgorithm, state: dict[str, Any]) -> None:

@@ -132,6 +132,11 @@ class DemoConfig:
     """0: the restored step is uniform over the demonstration; N > 0: a reverse curriculum, the
     restored step drawn from the last steps of the demonstration, a window that grows linearly from
     the last step to the whole episode over N env steps."""
+    reset_curriculum_success: Annotated[float, arg(name="demos-reset-curriculum-success")] = 0.0
+    """0: off; s in (0, 1]: a reverse curriculum paced by success (RFCL's advance on success, over all
+    demonstrations at once) instead of by env steps: the window of restored steps starts at the
+    demonstration's last step and widens by a tenth of the demonstration whenever the last 20 episodes
+    started from a demonstration state since it last widened succeeded at a rate >= s."""
     bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
     """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
     next to the actor's -mean Q; 0: demonstrations off (no demonstration rows, no BC loss: the agent
@@ -161,6 +166,14 @@ class DemoConfig:
         if self.reset_prob is not None and (not is_number(self.reset_prob) or not 0 <= self.reset_prob <= 1):
             raise InvalidConfig(f"demos reset_prob must be in [0, 1]; got {self.reset_prob!r}")
         check_int("demos reset_curriculum_steps", self.reset_curriculum_steps, 0)
+        success = self.reset_curriculum_success
+        if not is_number(success) or not 0 <= success <= 1:
+            raise InvalidConfig(f"demos reset_curriculum_success must be in [0, 1]; got {success!r}")
+        if success and self.reset_curriculum_steps:
+            raise InvalidConfig(
+                f"demos reset_curriculum_steps {self.reset_curriculum_steps} with reset_curriculum_success "
+                f"{success}: one reverse curriculum, paced by env steps or by success; accepted: one of them 0"
+            )
 
     @property
     def active(self) -> bool:
@@ -271,23 +284,26 @@ class AgentConfig:
         demos = self.demos
         if demos.batch_share is None:
             demos = dataclasses.replace(demos, batch_share=preset["demos_batch_share"])
-        if not demos.active and (demos.reset_prob or demos.reset_curriculum_steps):
+        if not demos.active and (
+            demos.reset_prob or demos.reset_curriculum_steps or demos.reset_curriculum_success
+        ):
             raise InvalidConfig(
                 f"demos reset_prob {demos.reset_prob} / reset_curriculum_steps {demos.reset_curriculum_steps} "
-                "without demonstrations: resets to demonstration states need a demonstration file "
-                "(--demos) with batch_share and bc_weight > 0; accepted without: reset_prob 0, "
-                "reset_curriculum_steps 0"
+                f"/ reset_curriculum_success {demos.reset_curriculum_success} without demonstrations: "
+                "resets to demonstration states need a demonstration file (--demos) with batch_share and "
+                "bc_weight > 0; accepted without: reset_prob 0, reset_curriculum_steps 0, "
+                "reset_curriculum_success 0"
             )
         if demos.reset_prob is None and demos.active and preset["demos_reset_prob"]:
             # None stays None (no resets) otherwise: a file given later (dataclasses.replace, as
             # experiments add theirs, or with --resume) finds the same config as the paper's runs have
             demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"])
-        if demos.reset_curriculum_steps > 0 and not demos.reset_prob:
-            raise InvalidConfig(
-                f"demos reset_curriculum_steps {demos.reset_curriculum_steps} with reset_prob "
-                f"{demos.reset_prob}: a reset curriculum needs demonstration resets; accepted: "
-                "reset_prob > 0, or reset_curriculum_steps 0"
-            )
+        for name in ("reset_curriculum_steps", "reset_curriculum_success"):
+            if getattr(demos, name) > 0 and not demos.reset_prob:
+                raise InvalidConfig(
+                    f"demos {name} {getattr(demos, name)} with reset_prob {demos.reset_prob}: a reset "
+                    f"curriculum needs demonstration resets; accepted: reset_prob > 0, or {name} 0"
+                )
         object.__setattr__(self, "demos", demos)
 
 

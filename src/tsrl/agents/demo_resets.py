@@ -76,6 +76,12 @@ def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
     return states
 
 
+#: The success-paced curriculum (DemoConfig.reset_curriculum_success): the number of last
+#: demonstration-started episodes it judges a window by, and the window's growth (a fraction of T).
+PACE_EPISODES = 20
+PACE_STRIDE = 0.1
+
+
 class DemoResets(gym.Wrapper):
     """Starts an episode from a demonstration state with probability `prob` (module docstring).
 
@@ -86,27 +92,50 @@ class DemoResets(gym.Wrapper):
         curriculum_steps: 0: the step is uniform in [0, T - 1]; N > 0: uniform in [T - w, T - 1] with
             w = ceil(T * min(1, env steps / N)) (at least 1), the window growing with the env steps.
         seed: seed of the wrapper's own generator.
+        curriculum_success: 0: off; s > 0: the step is uniform in [T - w, T - 1] with w starting at 1
+            and growing by ceil(PACE_STRIDE * T) (up to T) whenever the last PACE_EPISODES
+            demonstration-started episodes since it last grew succeeded at a rate >= s.
     """
 
-    def __init__(self, env: gym.Env, states: np.ndarray, prob: float, curriculum_steps: int, seed: int):
+    def __init__(
+        self,
+        env: gym.Env,
+        states: np.ndarray,
+        prob: float,
+        curriculum_steps: int,
+        seed: int,
+        curriculum_success: float = 0.0,
+    ):
         super().__init__(env)
         self.states = states
         self.prob = prob
         self.curriculum_steps = curriculum_steps
+        self.curriculum_success = curriculum_success
         self.seed = seed
         self.rng = np.random.default_rng([seed, 0xDE30])  # its own stream: the env's draws are unchanged
         self.env_steps = 0
         self.last_reset: tuple[int, int] | None = None
+        self.window = 1  # the success-paced window [steps]
+        self.outcomes: list[bool] = []  # the last demonstration-started episodes since it last grew
 
-    def continue_from(self, env_steps: int, episodes: int) -> None:
-        """A resumed run's wrapper: the curriculum at `env_steps` (the checkpoint's), its draws from a
-        generator seeded from (seed, `episodes` done), as the resumed environment's are."""
+    def curriculum_state(self) -> dict[str, Any]:
+        """The success-paced curriculum's state, for a checkpoint (continue_from takes it back)."""
+        return {"window": self.window, "outcomes": list(self.outcomes)}
+
+    def continue_from(self, env_steps: int, episodes: int, curriculum: dict[str, Any] | None = None) -> None:
+        """A resumed run's wrapper: the curriculum at `env_steps` (the checkpoint's) and, paced by
+        success, at its saved `curriculum` state; its draws from a generator seeded from (seed,
+        `episodes` done), as the resumed environment's are."""
         self.env_steps = env_steps
         self.rng = np.random.default_rng([self.seed, 0xDE30, episodes])
+        if curriculum is not None:
+            self.window, self.outcomes = int(curriculum["window"]), list(curriculum["outcomes"])
 
     def start_step(self) -> int:
         """The demonstration step the next demonstration reset restores (drawn)."""
         t_steps = self.states.shape[1] - 1
+        if self.curriculum_success:
+            return int(self.rng.integers(t_steps - self.window, t_steps))
         if self.curriculum_steps == 0:
             return int(self.rng.integers(t_steps))
         window = max(1, math.ceil(t_steps * min(1.0, self.env_steps / self.curriculum_steps)))
@@ -130,4 +159,15 @@ class DemoResets(gym.Wrapper):
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         self.env_steps += 1
-        return self.env.step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if self.curriculum_success and self.last_reset is not None and (terminated or truncated):
+            self._pace(bool(info["is_success"]))
+        return obs, reward, terminated, truncated, info
+
+    def _pace(self, success: bool) -> None:
+        """Counts a demonstration-started episode's outcome; widens the window when they succeed."""
+        self.outcomes = [*self.outcomes, success][-PACE_EPISODES:]
+        if len(self.outcomes) == PACE_EPISODES and np.mean(self.outcomes) >= self.curriculum_success:
+            t_steps = self.states.shape[1] - 1
+            self.window = min(t_steps, self.window + math.ceil(PACE_STRIDE * t_steps))
+            self.outcomes = []

@@ -91,7 +91,9 @@ def _training_env(cfg: TrainConfig) -> gym.Env:
         states = replay_states(replay, load_demos(demos.path, DemoSpec.of(env)), demos.path)
     finally:
         replay.close()
-    return DemoResets(env, states, demos.reset_prob, demos.reset_curriculum_steps, cfg.seed)
+    return DemoResets(
+        env, states, demos.reset_prob, demos.reset_curriculum_steps, cfg.seed, demos.reset_curriculum_success
+    )
 
 
 def gradient_steps(cfg: TrainConfig, episode_steps: int) -> int:

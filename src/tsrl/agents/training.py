@@ -28,7 +28,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
 from ..signals import in_main_thread
-from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
+from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss
@@ -164,7 +164,9 @@ class _Session:
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
             if cfg.agent.demos.reset_prob:  # its reverse curriculum goes on, not from its start
-                self.venv.env_method("continue_from", state.env_steps, state.episodes)
+                assert checkpoint.rng is not None  # verified for training
+                curriculum = checkpoint.rng.get(DEMO_RESETS)  # None in a checkpoint from before it was kept
+                self.venv.env_method("continue_from", state.env_steps, state.episodes, curriculum)
         last_row = truncate_progress(self.run_dir, state.env_steps if checkpoint else -1)
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
         callback = _SafePointCallback(self, state, last_row)
