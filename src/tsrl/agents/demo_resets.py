@@ -11,10 +11,13 @@ old ones included, can be reset to; the files need no state arrays.
 
 `DemoResets` wraps the training environment (not the evaluation ones): after the task's own reset,
 with probability `prob` it restores a demonstration state (a uniform episode and step, or with a
-reverse curriculum a step among the demonstration's last ones) and returns that state's observation.
+reverse curriculum a step among the demonstration's last ones, a window widened by env steps or, paced
+by success, whenever the last demonstration-started episodes succeeded) and returns that state's
+observation.
 Its draws come from its own generator, seeded from the run's seed. A resumed run continues the
-curriculum where its checkpoint left it (`continue_from`: the env steps done; the generator reseeded
-from the seed and the episodes done, as the environment is).
+curriculum where its checkpoint left it (`continue_from`: the env steps done, the success-paced
+window and outcomes from the checkpoint; the generator reseeded from the seed and the episodes done,
+as the environment is).
 
 `restore_state` writes a state into the environment through `TaskEnv.restore_state` (MuJoCo's
 `mj_setState` / `mj_forward`, then the task's observation of it).
