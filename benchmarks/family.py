@@ -32,7 +32,14 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from learning import in_parallel, train_or_resume
-from learning_tables import THRESHOLDS, first_reaching, group_table, read_progress_csv, save_runs
+from learning_tables import (
+    THRESHOLDS,
+    family_variant,
+    first_reaching,
+    group_table,
+    read_progress_csv,
+    save_runs,
+)
 from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
@@ -199,9 +206,8 @@ def main(argv: list[str] | None = None) -> None:
     ]
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
-        label = f"tsrl/{task} with {args.demos} demonstrations, learner {args.learner}"
-        label += "" if resets is None else f", resets {resets[0]:g} (curriculum {resets[1]:,} env steps)"
-        label += f", paced by success {resets[2]:g}" if resets is not None and resets[2] else ""
+        variant = family_variant(next(cfg for cfg, _ in work if cfg.env_id == f"tsrl/{task}").to_dict())
+        label = f"tsrl/{task} with {args.demos} demonstrations" + "".join(f", {v}" for v in variant)
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

@@ -163,7 +163,7 @@ class _Session:
                 attach_bc_loss(model, cfg.agent.demos)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
-            if cfg.agent.demos.reset_prob:  # its reverse curriculum goes on, not from its start
+            if self.venv.has_attr("continue_from"):  # DemoResets: its curriculum goes on, not from its start
                 assert checkpoint.rng is not None  # verified for training
                 curriculum = checkpoint.rng.get(DEMO_RESETS)  # None in a checkpoint from before it was kept
                 self.venv.env_method("continue_from", state.env_steps, state.episodes, curriculum)
