@@ -281,6 +281,37 @@ def test_a_resumed_run_continues_its_success_paced_curriculum(reach_demos, tmp_p
     assert seen[0] == 2 and seen[-1] == 4
 
 
+@pytest.fixture(scope="module")
+def paced_checkpoint(reach_demos, tmp_path_factory) -> Path:
+    """The one checkpoint of a 100-step run with a success-paced reset curriculum."""
+    from tsrl.agents.training import train
+
+    demos = DemoConfig(path=str(reach_demos), reset_prob=1.0, reset_curriculum_success=0.5)
+    run_dir = train(tiny(total=100, demos=demos), tmp_path_factory.mktemp("paced"), progress_bar=False)
+    [checkpoint] = sorted((run_dir / "checkpoints").glob("step_*"))
+    return checkpoint
+
+
+@pytest.mark.parametrize(
+    "curriculum",
+    [{"window": 0, "outcomes": []}, {"window": 1}, {"window": 1, "outcomes": [0.5]}, [1, []]],
+    ids=["window-0", "no-outcomes", "outcome-not-bool", "not-a-dict"],
+)
+def test_a_damaged_curriculum_state_makes_its_checkpoint_damaged(curriculum, paced_checkpoint, tmp_path):
+    import pickle
+    import shutil
+
+    from tsrl.agents.checkpoint import DEMO_RESETS, verify_checkpoint
+    from tsrl.agents.run_folder import DamagedCheckpoint
+
+    checkpoint = Path(shutil.copytree(paced_checkpoint, tmp_path / paced_checkpoint.name))
+    verify_checkpoint(checkpoint, normalized=True, for_training=True)  # as saved: usable
+    rng = pickle.loads((checkpoint / "rng.pkl").read_bytes())
+    (checkpoint / "rng.pkl").write_bytes(pickle.dumps(rng | {DEMO_RESETS: curriculum}))
+    with pytest.raises(DamagedCheckpoint, match="rng.pkl.*'demo_resets' is not a curriculum state"):
+        verify_checkpoint(checkpoint, normalized=True, for_training=True)
+
+
 def test_a_file_the_environment_does_not_reproduce_cannot_be_reset_to(pick_demos):
     from tsrl.agents.demo_files import load_demos
 

@@ -113,7 +113,28 @@ def verify_checkpoint(path: Path, normalized: bool, for_training: bool) -> Check
     rng = _load_pickle(path / RNG, dict)
     if set(rng) - {DEMO_RESETS} != _RNG_KEYS:
         raise DamagedCheckpoint(path / RNG, f"expected RNG states {sorted(_RNG_KEYS)}; got {sorted(rng)}")
+    if DEMO_RESETS in rng and not _is_curriculum_state(rng[DEMO_RESETS]):
+        raise DamagedCheckpoint(
+            path / RNG,
+            f"{DEMO_RESETS!r} is not a curriculum state {{'window': int >= 1, 'outcomes': [bool, ...]}}; "
+            f"got {rng[DEMO_RESETS]!r:.80}",
+        )
     return Checkpoint(path, state, normalizer, buffer, rng)
+
+
+def _is_curriculum_state(value: object) -> bool:
+    """Whether `value` has the form of DemoResets.curriculum_state: {"window": int >= 1, "outcomes":
+    list of bool}."""
+    if not isinstance(value, dict) or set(value) != {"window", "outcomes"}:
+        return False
+    window, outcomes = value["window"], value["outcomes"]
+    return (
+        isinstance(window, int)
+        and not isinstance(window, bool)
+        and window >= 1
+        and isinstance(outcomes, list)
+        and all(isinstance(o, bool) for o in outcomes)
+    )
 
 
 def usable_checkpoint(run_dir: Path, normalized: bool, for_training: bool) -> Checkpoint | None:
