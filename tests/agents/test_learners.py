@@ -20,7 +20,7 @@ import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.config import LEARNER_PRESETS, DemoConfig
 from tsrl.agents.demo_files import DemoFileError, save_demos
-from tsrl.agents.demo_resets import DemoResets, get_state, replay_states
+from tsrl.agents.demo_resets import DemoResets, replay_states
 from tsrl.agents.demonstrators import record_demos
 from tsrl.agents.demos import DemoReplayBuffer, first_q
 from tsrl.agents.factory import make_env
@@ -183,7 +183,7 @@ def test_demonstration_reset_restores_the_recorded_state_exactly(pick_demos):
         a, b = wrapped.unwrapped.data, independent.unwrapped.data
         for field in ("qpos", "qvel", "act", "mocap_pos", "mocap_quat", "ctrl", "qacc_warmstart"):
             assert np.array_equal(getattr(a, field), getattr(b, field)), field
-        assert np.array_equal(get_state(wrapped.unwrapped), get_state(independent.unwrapped))
+        assert np.array_equal(wrapped.unwrapped.get_state(), independent.unwrapped.get_state())
         for t in range(step, min(step + 3, demos.episode_steps)):  # and it goes on as the demonstration did
             obs = wrapped.step(demos.actions[episode, t])[0]
             assert np.array_equal(obs["observation"], demos.observation[episode, t + 1])

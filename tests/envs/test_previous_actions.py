@@ -91,3 +91,22 @@ def test_bad_previous_actions_are_one_line_naming_the_file_and_key(tmp_path, val
         load_task(path)
     text = str(err.value)
     assert "\n" not in text and str(path) in text and "previous_actions" in text
+
+
+def test_a_restored_state_brings_back_the_previous_actions_with_the_physics():
+    source, restored = _env(2), _env(2)
+    k = source.action_space.shape[0]
+    source.reset(seed=6)
+    actions = np.random.default_rng(3).uniform(-1, 1, (4, k)).astype(np.float32)
+    for action in actions[:3]:
+        obs, *_ = source.step(action)
+    restored.reset(seed=7)  # another episode: other physics, zero previous actions
+    again = restored.restore_state(source.get_state())
+    for key in obs:
+        assert again[key].tobytes() == obs[key].tobytes(), key
+    np.testing.assert_array_equal(again["observation"][-2 * k :], np.concatenate([actions[2], actions[1]]))
+    a, *_ = source.step(actions[3])
+    b, *_ = restored.step(actions[3])  # and goes on as the source does
+    assert b["observation"].tobytes() == a["observation"].tobytes()
+    with pytest.raises(ValueError, match=r"get_state's"):
+        _env(0).restore_state(source.get_state())  # a state with previous actions, a task without

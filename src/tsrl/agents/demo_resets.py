@@ -3,9 +3,9 @@ from a state a demonstration passed through, restored exactly.
 
 A demonstration file (tsrl.agents.demo_files) holds each episode's seed and actions, and the
 environments are deterministic: `replay_states` replays every episode once on a fresh copy of the
-run's environment, keeps MuJoCo's full integration state (mjSTATE_INTEGRATION: time, qpos, qvel, act,
-warm start, ctrl, applied forces, equality flags, mocap poses, user data) after the reset and after
-each step, and checks that the replay reproduces the file's observations bit for bit (a file the
+run's environment, keeps its state (`TaskEnv.get_state`: MuJoCo's full integration state,
+mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl, applied forces, equality flags, mocap
+poses, user data; and the previous actions a task observes) after the reset and after each step, and checks that the replay reproduces the file's observations bit for bit (a file the
 environment does not reproduce is one DemoFileError naming the episode and step). So every file,
 old ones included, can be reset to; the files need no state arrays.
 
@@ -20,7 +20,7 @@ window and outcomes from the checkpoint; the generator reseeded from the seed an
 as the environment is).
 
 `restore_state` writes a state into the environment through `TaskEnv.restore_state` (MuJoCo's
-`mj_setState` / `mj_forward`, then the task's observation of it).
+`mj_setState` / `mj_forward` and the previous actions, then the task's observation of it).
 """
 
 from __future__ import annotations
@@ -29,27 +29,15 @@ import math
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
-from ..envs.base import STATE_SPEC as TASK_STATE_SPEC
 from ..envs.base import TaskEnv
 from ..envs.keys import OBS_KEYS
 from .demo_files import DemoFileError, Demonstrations
 
-#: The MuJoCo state a demonstration state holds (mujoco.mj_getState's spec).
-STATE_SPEC = TASK_STATE_SPEC
-
-
-def get_state(base: TaskEnv) -> np.ndarray:
-    """MuJoCo's integration state of the task env `base` (env.unwrapped), float64 (mj_stateSize,)."""
-    state = np.empty(mujoco.mj_stateSize(base.model, STATE_SPEC))
-    mujoco.mj_getState(base.model, base.data, state, STATE_SPEC)
-    return state
-
 
 def restore_state(base: TaskEnv, state: np.ndarray) -> dict[str, np.ndarray]:
-    """Writes `state` (from get_state) into the task env `base` and returns its observation."""
+    """Writes `state` (from TaskEnv.get_state) into the task env `base` and returns its observation."""
     return base.restore_state(state)
 
 
@@ -61,7 +49,7 @@ def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
     if base.task.randomize.active:
         raise DemoFileError(path, "resets to demonstration states need a task without [randomize]")
     t_steps = demos.episode_steps
-    states = np.empty((demos.n_episodes, t_steps + 1, mujoco.mj_stateSize(base.model, STATE_SPEC)))
+    states = np.empty((demos.n_episodes, t_steps + 1, base.get_state().size))
     for i in range(demos.n_episodes):
         obs, _ = env.reset(seed=int(demos.seeds[i]))
         for t in range(t_steps + 1):
@@ -75,7 +63,7 @@ def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
                         f"{key} at step {t}: recorded on another version of the task? Resets to "
                         "demonstration states need a file this environment reproduces",
                     )
-            states[i, t] = get_state(base)
+            states[i, t] = base.get_state()
     return states
 
 

@@ -33,7 +33,7 @@ from .randomization import Randomizer
 from .scenes import load_scene
 from .tasks import Task, load_task
 
-#: What `TaskEnv.restore_state` takes: MuJoCo's full integration state (mj_getState's spec).
+#: The MuJoCo part of what `TaskEnv.get_state` gives and `restore_state` takes (mj_getState's spec).
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 #: Physics warnings that mean the simulation blew up (MuJoCo resets the state when they fire).
@@ -285,13 +285,28 @@ class TaskEnv(gym.Env, EzPickle):
         """
         return self.goal.relabel(self.plan.obs_map, obs, new_goal)
 
+    def get_state(self) -> np.ndarray:
+        """The state restore_state takes, float64 (mj_stateSize + previous_actions x action dim,): MuJoCo's
+        integration state (mj_getState with mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start,
+        ctrl, mocap poses, ...) followed by the policy's previous actions (`Task.previous_actions`,
+        newest first; nothing where the task observes none)."""
+        physics = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        mujoco.mj_getState(self.model, self.data, physics, STATE_SPEC)
+        return np.concatenate([physics, self._previous_actions.ravel()])
+
     def restore_state(self, state: np.ndarray) -> dict[str, np.ndarray]:
-        """Writes a full physics state (mujoco.mj_getState with mjSTATE_INTEGRATION: time, qpos, qvel,
-        act, warm start, ctrl, mocap poses, ...) into the simulation and returns its observation, e.g.
-        a demonstration's state to start an episode from (Nair et al. 2018's resets). The previous
-        actions (`Task.previous_actions`) are not part of the state: they restart at zero."""
-        mujoco.mj_setState(self.model, self.data, np.asarray(state, dtype=np.float64), STATE_SPEC)
-        self._previous_actions[:] = 0.0
+        """Writes a state from get_state into the simulation and the previous actions and returns its
+        observation, e.g. a demonstration's state to start an episode from (Nair et al. 2018's
+        resets)."""
+        state = np.asarray(state, dtype=np.float64)
+        n_physics = mujoco.mj_stateSize(self.model, STATE_SPEC)
+        if state.shape != (n_physics + self._previous_actions.size,):
+            raise ValueError(
+                f"restore_state: a state of task {self.task.name!r} has shape "
+                f"({n_physics + self._previous_actions.size},) (get_state's); got {state.shape}"
+            )
+        mujoco.mj_setState(self.model, self.data, state[:n_physics], STATE_SPEC)
+        self._previous_actions[:] = state[n_physics:].reshape(self._previous_actions.shape)
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
         return self._observation()
