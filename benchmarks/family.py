@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> None:
     for task in args.tasks:
         run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
         variant = family_variant(next(cfg for cfg, _ in work if cfg.env_id == f"tsrl/{task}").to_dict())
-        label = f"tsrl/{task} with {args.demos} demonstrations" + "".join(f", {v}" for v in variant)
+        label = f"tsrl/{task}" + (f" ({', '.join(variant)})" if variant else "")  # as the saved table
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[task][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
