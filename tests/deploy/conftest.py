@@ -65,3 +65,15 @@ def ur5e_reach(exports: Callable[..., Path]) -> Path:
 @pytest.fixture(scope="session")
 def panda_pick_place(exports: Callable[..., Path]) -> Path:
     return exports("panda_pick_place", env_id="tsrl/PandaPickPlace-v0", obs="pick_phi_plus")
+
+
+@pytest.fixture(scope="session")
+def ur5e_reach_history(exports: Callable[..., Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reach with its last 2 actions observed (a task file with `previous_actions = 2`)."""
+    from tsrl.envs.tasks import load_task
+
+    source = load_task("UR5eReach-v0").source
+    assert source is not None
+    task = tmp_path_factory.mktemp("history") / "reach-history.toml"
+    task.write_text("previous_actions = 2\n" + source.read_text())
+    return exports("ur5e_reach_history", env_id=str(task))

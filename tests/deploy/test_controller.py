@@ -35,7 +35,7 @@ def measured(env, controller):
     return q, qd, objects
 
 
-@pytest.mark.parametrize("name", ["ur5e_reach", "panda_pick_place"])
+@pytest.mark.parametrize("name", ["ur5e_reach", "panda_pick_place", "ur5e_reach_history"])
 def test_features_and_joint_targets_are_the_environments_own(name, request):
     folder = request.getfixturevalue(name)
     controller = Controller.from_export(folder)

@@ -114,13 +114,17 @@ def test_tasks_the_runtime_cannot_measure_are_refused_in_one_line(env_id, why, t
     assert not (tmp_path / "export").exists()
 
 
-def test_a_task_that_observes_its_previous_actions_is_refused_in_one_line(tmp_path):
-    from tsrl.envs.tasks import load_task
-    from tsrl.exceptions import InvalidConfig
+def test_a_task_that_observes_its_previous_actions_exports_them_as_the_last_rows(ur5e_reach_history):
+    from tsrl.deploy.contract import read_contract
+    from tsrl.envs.observations import PREVIOUS_ACTIONS
 
-    task = tmp_path / "history.toml"
-    task.write_text("previous_actions = 1\n" + load_task("UR5eReach-v0").source.read_text())
-    with pytest.raises(InvalidConfig, match="observes its previous actions") as err:
-        build_export(tmp_path / "export", env_id=str(task), obs="fs1")
-    assert "\n" not in str(err.value)
-    assert not (tmp_path / "export").exists()
+    contract = read_contract(ur5e_reach_history)
+    observation, k = contract["observation"], contract["action"]["dim"]
+    rows = observation["rows"]
+    assert observation["previous_actions"] == 2
+    [policy_input] = [i for i in contract["policy"]["inputs"] if i["name"] == "observation"]
+    assert observation["dim"] == len(rows) == policy_input["dim"]
+    history = [r for r in rows if r["map"] == PREVIOUS_ACTIONS]
+    assert [r["index"] for r in history] == list(range(len(rows) - 2 * k, len(rows)))
+    assert history[0]["component"] == "action[0] at t-1"
+    assert history[-1]["component"] == f"action[{k - 1}] at t-2"

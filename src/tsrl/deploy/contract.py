@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ..envs.observations import PREVIOUS_ACTIONS
 from ..exceptions import InvalidConfig
 from ..taskmaps import (
     AccumulatedCollisions,
@@ -86,6 +87,23 @@ def describe_rows(stack: Stack, joint_units: Sequence[str] = ()) -> list[dict[st
                 {"index": len(rows), "map": part.spec, "component": component, "frame": frame, "unit": unit}
             )
     return rows
+
+
+def previous_action_rows(first: int, n: int, action_dim: int) -> list[dict[str, Any]]:
+    """The records of the observation's last rows when the task observes its `n` previous actions
+    (`Task.previous_actions`): indices from `first`, newest action first, each the policy's applied
+    action in [-1, 1]."""
+    return [
+        {
+            "index": first + j * action_dim + i,
+            "map": PREVIOUS_ACTIONS,
+            "component": f"action[{i}] at t-{j + 1}",
+            "frame": "-",
+            "unit": "1",
+        }
+        for j in range(n)
+        for i in range(action_dim)
+    ]
 
 
 def _part_rows(part: TaskMap, joint_units: tuple[str, ...]) -> list[tuple[str, str, str]]:

@@ -9,6 +9,8 @@ One policy step, `act(q, qd, objects, goal, t=...)`:
    `max_state_age` or not newer than the last one: hold (stop as fast as the limits allow) and report;
 2. features: the measured state written into the model (arm qpos and qvel, objects, goal markers,
    the last suction command), `mj_kinematics` + `mj_comPos`, the env's step maps evaluated once;
+   where the task observes its previous actions (`previous_actions = n`), the last n applied actions
+   after them, newest first (zeros after `reset`; a held step applies none and keeps them);
 3. the policy (onnxruntime; normaliser inside); a non-finite action: hold and report; the action
    clipped to [-1, 1], then the optional first-order filter;
 4. the IK step (the env's own: `ActionMap.ik_target`, one damped least-squares step with the run's
@@ -176,6 +178,8 @@ class Controller:
                 self._tcp_part = (slice(*part["columns"]), rows, float(part["step"]))
         self._alpha = math.exp(-self.control_period / options.action_filter) if options.action_filter else 0.0
         self._filtered: np.ndarray | None = None
+        #: The last applied actions (Task.previous_actions, k), newest first: the observation's last rows.
+        self._previous_actions = np.zeros((env.task.previous_actions, env.action_map.dim))
         self._goal = np.zeros(env.goal.dim)
         self._goal_set = False
         self._suction = False
@@ -194,12 +198,13 @@ class Controller:
     # -- episode ----------------------------------------------------------------------------------
     def reset(self, joint_positions: ArrayLike, t: float, goal: ArrayLike | None = None) -> None:
         """Starts an episode at rest at the measured joint positions (n,) at time t [s], optionally with
-        its goal (g,); the filter and the suction command are reset."""
+        its goal (g,); the filter, the previous actions and the suction command are reset."""
         q = self._joints("joint_positions", joint_positions)
         if not np.isfinite(q).all():
             raise InvalidConfig(f"reset: joint positions must be finite; got {q.tolist()}")
         self.limiter.reset(q, t)
         self._filtered = None
+        self._previous_actions[:] = 0.0
         self._suction = False
         self._last_stamp = None
         if goal is not None:
@@ -265,6 +270,8 @@ class Controller:
         if faults:
             return self._hold(cycle, faults)
         observation, achieved, desired = self._features(q, qd, objs)
+        if self._previous_actions.size:
+            observation = np.concatenate([observation, self._previous_actions.ravel()])
         cycle.observation, cycle.achieved_goal, cycle.desired_goal = (
             observation.copy(),
             achieved.copy(),
@@ -282,6 +289,9 @@ class Controller:
             )
             a = self._filtered
         cycle.applied_action = a.copy()
+        if self._previous_actions.size:
+            self._previous_actions[1:] = self._previous_actions[:-1]
+            self._previous_actions[0] = a
         found: list[str] = []
         if self.workspace is not None and not self._goal_within_workspace():
             found.append(GOAL_OUTSIDE_WORKSPACE)

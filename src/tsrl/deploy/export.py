@@ -49,6 +49,7 @@ from .contract import (
     ROBOT,
     TASK,
     describe_rows,
+    previous_action_rows,
     sha256,
 )
 from .exported import exported_env, model_bytes
@@ -149,12 +150,6 @@ def export_policy(
             f"task {task.name!r} commands a gripper; the deployment runtime commands a suction cup only, so "
             "it cannot be exported for deployment"
         )
-    if task.previous_actions:
-        raise InvalidConfig(
-            f"task {task.name!r} observes its previous actions (previous_actions = {task.previous_actions}); "
-            "the deployment runtime builds observations from task maps only, so it cannot be exported; "
-            "accepted: previous_actions = 0"
-        )
     if task.source is None:
         raise InvalidConfig(f"task {task.name!r} was built in code; export needs a task file")
     keys = tuple(cfg.agent.policy_inputs)
@@ -206,7 +201,7 @@ def _write_onnx(actor: _Actor, env: TaskEnv, keys: tuple[str, ...], path: Path) 
 
 def input_dims(env: TaskEnv) -> dict[str, int]:
     """The size of each observation-dict entry of the environment."""
-    return {"observation": env.obs_map.dim, "achieved_goal": env.goal.dim, "desired_goal": env.goal.dim}
+    return {"observation": env.obs_dim, "achieved_goal": env.goal.dim, "desired_goal": env.goal.dim}
 
 
 def torch_actions(
@@ -432,8 +427,10 @@ def _contract(
         },
         "observation": {
             "spec": env.obs_map.spec,
-            "dim": env.obs_map.dim,
-            "rows": describe_rows(env.obs_map, joint_units),
+            "dim": input_dims(env)["observation"],
+            "previous_actions": task.previous_actions,
+            "rows": describe_rows(env.obs_map, joint_units)
+            + previous_action_rows(env.obs_map.dim, task.previous_actions, action.dim),
         },
         "goal": {
             "map": task.goal.map,

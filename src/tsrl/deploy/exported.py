@@ -49,7 +49,7 @@ def check_env_matches(env: TaskEnv, contract: dict[str, Any]) -> None:
         ("robot.joints", list(env.robot.joints), robot["joints"]),
         ("task.control_period_s", env.task.control_dt, task["control_period_s"]),
         ("observation.spec", env.obs_map.spec, contract["observation"]["spec"]),
-        ("observation.dim", env.obs_map.dim, contract["observation"]["dim"]),
+        ("observation.dim", env.obs_dim, contract["observation"]["dim"]),
         ("goal.dim", env.goal.dim, contract["goal"]["dim"]),
         ("action.dim", env.action_map.dim, contract["action"]["dim"]),
     ]

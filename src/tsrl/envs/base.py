@@ -170,10 +170,11 @@ class TaskEnv(gym.Env, EzPickle):
         self._steps = 0
         #: The policy's last `task.previous_actions` actions (n, k), newest first: observation rows.
         self._previous_actions = np.zeros((task.previous_actions, self.action_map.dim))
-        obs_dim = self.plan.obs_map.dim + self._previous_actions.size
+        #: Rows of the "observation" entry: the observation map's, then the previous actions'.
+        self.obs_dim: int = self.plan.obs_map.dim + self._previous_actions.size
         self.observation_space = spaces.Dict(
             {
-                "observation": spaces.Box(-np.inf, np.inf, (obs_dim,), np.float64),
+                "observation": spaces.Box(-np.inf, np.inf, (self.obs_dim,), np.float64),
                 "achieved_goal": spaces.Box(-np.inf, np.inf, (self.goal.dim,), np.float64),
                 "desired_goal": spaces.Box(-np.inf, np.inf, (self.goal.dim,), np.float64),
             }
