@@ -5,8 +5,9 @@ A demonstration file (tsrl.agents.demo_files) holds each episode's seed and acti
 environments are deterministic: `replay_states` replays every episode once on a fresh copy of the
 run's environment, keeps its state (`TaskEnv.get_state`: MuJoCo's full integration state,
 mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl, applied forces, equality flags, mocap
-poses, user data; and the previous actions a task observes) after the reset and after each step, and checks that the replay reproduces the file's observations bit for bit (a file the
-environment does not reproduce is one DemoFileError naming the episode and step). So every file,
+poses, user data; and the previous actions a task observes) after the reset and after each step,
+and checks that the replay reproduces the file's observations bit for bit (a file the environment
+does not reproduce is one DemoFileError naming the episode and step). So every file,
 old ones included, can be reset to; the files need no state arrays.
 
 `DemoResets` wraps the training environment (not the evaluation ones): after the task's own reset,

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..envs import TaskEnv
+from ..envs.observations import push_previous_action
 from ..exceptions import InvalidConfig
 from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
@@ -289,9 +290,7 @@ class Controller:
             )
             a = self._filtered
         cycle.applied_action = a.copy()
-        if self._previous_actions.size:
-            self._previous_actions[1:] = self._previous_actions[:-1]
-            self._previous_actions[0] = a
+        push_previous_action(self._previous_actions, a)
         found: list[str] = []
         if self.workspace is not None and not self._goal_within_workspace():
             found.append(GOAL_OUTSIDE_WORKSPACE)

@@ -427,7 +427,7 @@ def _contract(
         },
         "observation": {
             "spec": env.obs_map.spec,
-            "dim": input_dims(env)["observation"],
+            "dim": env.obs_dim,
             "previous_actions": task.previous_actions,
             "rows": describe_rows(env.obs_map, joint_units)
             + previous_action_rows(env.obs_map.dim, task.previous_actions, action.dim),

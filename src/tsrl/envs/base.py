@@ -27,7 +27,7 @@ from ..robots import Robot, load_robot
 from ..taskmaps import Stack, resolve_frame
 from .actions import ActionMap, action_mode
 from .goals import Goal
-from .observations import OBS_PRESETS, PREVIOUS_ACTIONS, StepPlan
+from .observations import OBS_PRESETS, PREVIOUS_ACTIONS, StepPlan, push_previous_action
 from .perturbations import Perturber
 from .randomization import Randomizer
 from .scenes import load_scene
@@ -231,9 +231,7 @@ class TaskEnv(gym.Env, EzPickle):
 
     def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         a = _checked_action(action, self._action_shape, self._action_low, self._action_high)
-        if self._previous_actions.size:
-            self._previous_actions[1:] = self._previous_actions[:-1]
-            self._previous_actions[0] = a
+        push_previous_action(self._previous_actions, a)
         perturb = self._perturb
         if perturb is not None:
             a = perturb.delayed(a)

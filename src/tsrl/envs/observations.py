@@ -40,6 +40,14 @@ OBS_PRESETS: dict[str, str] = {
 PREVIOUS_ACTIONS = "previous_actions"
 
 
+def push_previous_action(history: np.ndarray, action: np.ndarray) -> None:
+    """Puts `action` (k,) first in `history` (n, k), in place: the rows of PREVIOUS_ACTIONS are the
+    last n actions, newest first (the environment's step and the deployment controller's)."""
+    if history.size:
+        history[1:] = history[:-1]
+        history[0] = action
+
+
 def parse_observation(spec: str, model: mujoco.MjModel, joints: tuple[str, ...] | None = None) -> Stack:
     """The observation's Stack of a spec that may name OBS_PRESETS (tsrl.taskmaps.parse_spec)."""
     return parse_spec(spec, model, joints, OBS_PRESETS)
