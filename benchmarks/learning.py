@@ -17,6 +17,10 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
     python benchmarks/learning.py learner-ablation  # the learner suite, each --without OPTION and each
                                            # --screen NAME, 5 seeds each (runs reused by name): one table
+    python benchmarks/learning.py learner-small  # the final `fast` preset (no resets) on the learner suite's
+                                           # protocol beside it with smaller networks or batches (SMALL):
+                                           # 5 seeds each; issue 27's 90 s target
+    python benchmarks/learning.py speed-small  # the speed suite's rows of the fast preset and its SMALL variants
     python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
                                            # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
@@ -69,6 +73,7 @@ BUDGETS = {
     "demos": (50_000, 2_500, 100),
     "learner": (15_000, 2_500, 100),
     "learner-ablation": (15_000, 2_500, 100),
+    "learner-small": (15_000, 2_500, 100),
     "learner-reach": (3_000, 100, 20),
     "learner-obstacle": (8_000, 500, 50),
     "learner-pose": (25_000, 2_500, 50),
@@ -92,15 +97,26 @@ SCREENS: dict[str, dict[str, Any]] = {
     # episode over 10,000 env steps
     "curriculum-utd-0.4": {"utd": 0.4, "demos": {"reset_curriculum_steps": 10_000}},
 }
+#: The learner-small suite's variants of the final fast preset (LayerNorm critic, UTD 2, batch share 0.5,
+#: no demonstration resets), each in <out>/small-<name>/: smaller networks or batches make each gradient
+#: step cheaper, the 90 s target's bound (docs/training.md); "final" is the preset itself.
+SMALL: dict[str, dict[str, Any]] = {
+    "final": {},
+    "net-128": {"net_arch": (128, 128)},
+    "batch-128": {"batch_size": 128},
+}
+#: The speed-small suite's rows (speed's labels): the fast preset and its SMALL variants.
+SPEED_SMALL = ("fast preset (UTD 2)", "fast preset, networks [128, 128]", "fast preset, batch 128")
 #: The suites of the command line, and those that run 5 seeds by default (the others 3).
 SUITES = (
     "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-ablation",
-    "learner-reach", "learner-obstacle", "learner-pose",
+    "learner-reach", "learner-obstacle", "learner-pose", "learner-small", "speed-small",
 )  # fmt: skip
 FIVE_SEED_SUITES = (
     "demos",
     "learner",
     "learner-ablation",
+    "learner-small",
     "learner-reach",
     "learner-obstacle",
     "learner-pose",
@@ -110,6 +126,7 @@ SUITE_TABLES = {
     "demos": "train",
     "learner": "train",
     "learner-ablation": "ablation",
+    "learner-small": "small",
     "learner-reach": "reach_target",
     "learner-obstacle": "auc",
     "learner-pose": "auc",
@@ -155,6 +172,12 @@ def configs(
     if suite == "learner":
         assert demos is not None
         agent = learner_agent(demos, without)
+        return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
+    if suite.startswith("small-"):  # one variant of the learner-small suite
+        assert demos is not None
+        agent = AgentConfig(
+            learner="fast", demos=DemoConfig(path=str(demos)), **SMALL[suite.removeprefix("small-")]
+        )
         return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
     if suite == "learner-obstacle":  # issue 27's "nothing lost elsewhere" on the obstacle reach
         return [
@@ -264,10 +287,16 @@ def record_benchmark_demos(out_dir: Path) -> Path:
 
 
 def speed(
-    seeds: list[int], out_dir: Path, updates: int = 200, fill: int = 1000, env_steps: int = 500
+    seeds: list[int],
+    out_dir: Path,
+    updates: int = 200,
+    fill: int = 1000,
+    env_steps: int = 500,
+    only: tuple[str, ...] | None = None,
 ) -> list[dict[str, Any]]:
-    """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread, per learner option: gradient steps
-    per second of `model.train` (batch 256, `updates` steps, after one untimed call) on a buffer of
+    """Learner speed on UR5ePickPlace-v0 (fs1), one torch thread, per learner option (or those of
+    `only`, by label): gradient steps per second of `model.train` (the variant's batch, 256 but for
+    its SMALL batch-128 row, `updates` steps, after one untimed call) on a buffer of
     `fill` random-action transitions, next to the matrix-multiply floor of the same update, then env
     steps per second of `model.learn` with learning (the option's gradient steps per two episodes).
 
@@ -332,7 +361,11 @@ def speed(
         "TQC + feature HER": (None, agent(algo="tqc")),
         "SAC + feature HER": (None, agent(algo="sac")),
         "fast preset (UTD 2)": (None, agent(learner="fast", demos={})),
+        "fast preset, networks [128, 128]": (None, agent(learner="fast", demos={}, **SMALL["net-128"])),
+        "fast preset, batch 128": (None, agent(learner="fast", demos={}, **SMALL["batch-128"])),
     }
+    if only is not None:
+        variants = {label: variants[label] for label in only}
     try:
         import sbx
         from sbx.td3.policies import TD3Policy
@@ -353,12 +386,11 @@ def speed(
             )
             model = build(cfg) if build is not None else make_agent(cfg, make_vec_env(cfg))
             model.learn(fill)  # random actions fill the buffer; no update yet
-            model.train(gradient_steps=updates, batch_size=a.batch_size)  # untimed: sbx compiles here
-            floor = (
-                matmul_floor(model, a.batch_size, updates) if hasattr(model.policy, "modules") else math.nan
-            )
+            batch = agent_cfg.batch_size
+            model.train(gradient_steps=updates, batch_size=batch)  # untimed: sbx compiles here
+            floor = matmul_floor(model, batch, updates) if hasattr(model.policy, "modules") else math.nan
             t0 = time.perf_counter()
-            model.train(gradient_steps=updates, batch_size=a.batch_size)
+            model.train(gradient_steps=updates, batch_size=batch)
             t1 = time.perf_counter()
             model.learn(env_steps, reset_num_timesteps=False)
             t2 = time.perf_counter()
@@ -458,11 +490,13 @@ def main() -> None:
     if args.save == "learning-SUITE":
         args.save = f"learning-{args.suite}"
 
-    if args.suite == "speed":
+    if args.suite in ("speed", "speed-small"):
         with Measurement(
             args.save, __file__, "benchmarks/learning_tables.py:speed_table", "docs/training.md"
         ) as out:
-            rows = speed(args.seeds or [0], args.out_dir)
+            rows = speed(
+                args.seeds or [0], args.out_dir, only=SPEED_SMALL if args.suite == "speed-small" else None
+            )
             if out is not None:
                 write_rows(out / DATA_CSV, rows)
         print("\n".join(["", *speed_render(rows)]))
@@ -479,13 +513,20 @@ def main() -> None:
             strict=True,
         )
     )
-    with_demos = ("demos", "learner", "learner-ablation")
+    with_demos = ("demos", "learner", "learner-ablation", "learner-small")
     demos = record_benchmark_demos(args.out_dir) if args.suite in with_demos else None
     if args.suite == "learner-ablation":  # the learner suite's runs and each ablation's, in their folders
         work = [
             (cfg, args.out_dir / ablation_folder(without) if without else args.out_dir)
             for without in (None, *WITHOUT, *(f"screen-{name}" for name in SCREENS))
             for cfg in configs("learner", seeds, total, eval_freq, eval_episodes, demos, without)
+        ]
+        cfgs = [cfg for cfg, _ in work]
+    elif args.suite == "learner-small":  # each variant's runs in <out>/small-<name>/ (same run names)
+        work = [
+            (cfg, args.out_dir / f"small-{name}")
+            for name in SMALL
+            for cfg in configs(f"small-{name}", seeds, total, eval_freq, eval_episodes, demos)
         ]
         cfgs = [cfg for cfg, _ in work]
     else:
@@ -508,12 +549,13 @@ def main() -> None:
     with Measurement(args.save, __file__, f"benchmarks/learning_tables.py:table_{kind}", doc) as out:
         done = in_parallel(run_one, work, args.jobs)
         if out is not None:
-            save_runs(done, out, ablation_variant if kind == "ablation" else None)
-    if kind == "ablation":
+            save_runs(done, out, ablation_variant if kind in ("ablation", "small") else None)
+    if kind in ("ablation", "small"):
         variants: dict[str, list[Path]] = {}
         for run_dir in done:
             variants.setdefault(ablation_variant(run_dir), []).append(run_dir)
-        print("\n".join(["", *ablation_table(variants, ABLATION_BUDGET)]))
+        reference = "small-final" if kind == "small" else "fast"
+        print("\n".join(["", *ablation_table(variants, ABLATION_BUDGET, reference)]))
     else:
         print("\n".join(["", *suite_lines(kind, done)]))
 
@@ -524,10 +566,10 @@ def ablation_folder(variant: str) -> str:
 
 
 def ablation_variant(run_dir: Path) -> str:
-    """The learner ablation's variant of a run folder: "fast", "without-<option>" or "screen-<name>"
-    (its folder's parent)."""
+    """The learner ablation's variant of a run folder: "fast", "without-<option>", "screen-<name>" or
+    "small-<name>" (its folder's parent)."""
     parent = run_dir.parent.parent.name
-    return parent if parent.startswith(("without-", "screen-")) else "fast"
+    return parent if parent.startswith(("without-", "screen-", "small-")) else "fast"
 
 
 if __name__ == "__main__":

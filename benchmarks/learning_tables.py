@@ -240,11 +240,11 @@ def auc_comparison(run_dirs: list[Path]) -> list[str]:
     return lines
 
 
-def ablation_table(variants: dict[str, list[Path]], budget: int) -> list[str]:
+def ablation_table(variants: dict[str, list[Path]], budget: int, reference: str = "fast") -> list[str]:
     """The learner ablation (issue 27): per variant ("fast", "without-<option>") its seeds' env steps to
     95 % success, success at `budget` env steps (the target), IQM of AUC over the evaluations every run
-    has, fast's IQM minus the variant's (the option's contribution: > 0 means it helps) and the median
-    training seconds to `budget` (evaluations excluded)."""
+    has, the `reference` variant's IQM minus the variant's (the option's contribution: > 0 means it
+    helps) and the median training seconds to `budget` (evaluations excluded)."""
     from tsrl.experiments import statistics as st
 
     curves = {v: [read_progress_csv(d) for d in sorted(dirs, key=_seed)] for v, dirs in variants.items()}
@@ -257,7 +257,7 @@ def ablation_table(variants: dict[str, list[Path]], budget: int) -> list[str]:
         for v, cs in curves.items()
     }
     lines = [
-        f"| variant | seeds | env steps to 95 % | success at {budget:,} | AUC, IQM [95%] | fast minus variant, AUC | training s to {budget:,} (median) |",
+        f"| variant | seeds | env steps to 95 % | success at {budget:,} | AUC, IQM [95%] | {reference} minus variant, AUC | training s to {budget:,} (median) |",
         "| --- | ---: | --- | --- | --- | --- | ---: |",
     ]
     for v, cs in curves.items():
@@ -267,8 +267,8 @@ def ablation_table(variants: dict[str, list[Path]], budget: int) -> list[str]:
         reached = ", ".join(_steps(first_reaching(c, THRESHOLDS[-1])[0]) for c in cs)
         e = st.iqm_interval(aucs[v])
         diff = "-"
-        if v != "fast" and "fast" in aucs:
-            d = st.iqm_difference(aucs["fast"], aucs[v])
+        if v != reference and reference in aucs:
+            d = st.iqm_difference(aucs[reference], aucs[v])
             diff = f"{d.point[0]:+.3f} [{d.low[0]:+.3f}, {d.high[0]:+.3f}]"
         median_s = f"{np.median(seconds):.0f}" if seconds else "-"
         lines.append(
@@ -289,6 +289,15 @@ def table_ablation(data_dir: Path) -> list[str]:
         variants.setdefault(run_dir.parent.name, []).append(run_dir)
     order = sorted(variants, key=lambda v: (v != "fast", v.startswith("screen-"), v))
     return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET)
+
+
+def table_small(data_dir: Path) -> list[str]:
+    """`ablation_table` of a learner-small data folder laid out small-<name>/<run>/, against small-final."""
+    variants: dict[str, list[Path]] = {}
+    for run_dir in saved_runs(data_dir):
+        variants.setdefault(run_dir.parent.name, []).append(run_dir)
+    order = sorted(variants, key=lambda v: (v != "small-final", v))
+    return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET, "small-final")
 
 
 def table_wall(data_dir: Path) -> list[str]:
