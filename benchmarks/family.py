@@ -6,6 +6,7 @@ reached 95 % within the task's target budget.
     python benchmarks/family.py                      # every task, 5 seeds, its target budget
     python benchmarks/family.py --tasks PandaPush-v0 --seeds 0 1 --jobs 2
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast   # issue 27's preset as the remedy
+    python benchmarks/family.py --tasks PandaPush-v0 --learner fast --action-l2 1   # a penalty on actions
     python benchmarks/family.py --tasks PandaStack-v0 --demos-reset-prob 0.5 --demos-reset-curriculum-steps 100000
                                                      # resets to demonstration states, a reverse curriculum
     python benchmarks/learning.py family ...         # the same
@@ -81,20 +82,21 @@ def configs(
     demos: Path,
     learner: Learner = "paper",
     resets: DemoResets = None,
+    action_l2: float = 0.0,
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
     symmetric sampling is a remedy the issue names) with the demonstrations, the task's own
     observation and action; `resets` (probability, curriculum env steps, curriculum success rate):
     episodes started from demonstration states, the other remedy (Nair et al.; a reverse curriculum
     paced by env steps where they are > 0, by success as RFCL's where the rate is > 0), None: the
-    learner's."""
+    learner's; `action_l2` > 0: a penalty on the actor's squared actions (AgentConfig.action_l2)."""
     from tsrl.envs import load_task
 
     prob, steps, success = resets if resets is not None else (None, 0, 0.0)
     demo_config = DemoConfig(
         path=str(demos), reset_prob=prob, reset_curriculum_steps=steps, reset_curriculum_success=success
     )
-    agent = AgentConfig(learner=learner, demos=demo_config)
+    agent = AgentConfig(learner=learner, demos=demo_config, action_l2=action_l2)
     return [
         TrainConfig(
             env_id=f"tsrl/{task}",
@@ -139,6 +141,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument(
         "--learner", choices=("paper", "fast"), default="paper", help="the agent preset (default: paper)"
+    )
+    parser.add_argument(
+        "--action-l2",
+        type=float,
+        default=0.0,
+        help="weight of a penalty on the actor's squared actions (OpenAI baselines' HER action_l2, 1.0 "
+        "on Fetch; a remedy for reached-then-lost); default 0, none",
     )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/family"))
     parser.add_argument(
@@ -189,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
         target, eval_freq = TASKS[task]
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
-        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner, resets)
+        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner, resets, args.action_l2)
         parent = args.out_dir / run_parent(task, args.demos, resets)
         work += [(cfg, parent) for cfg in cfgs]
     print(

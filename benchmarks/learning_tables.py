@@ -338,6 +338,8 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     paced = demos.get("reset_curriculum_success", 0.0)
     extra += [f"reverse curriculum paced by success {paced:g}"] if resets and paced else []
     extra += [f"{count} demonstrations"] if count.isdigit() and int(count) != 100 else []
+    action_l2 = config["agent"].get("action_l2", 0.0)
+    extra += [f"action penalty {action_l2:g}"] if action_l2 else []
     return extra
 
 

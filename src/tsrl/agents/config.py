@@ -11,6 +11,7 @@ reason next to each (docs/training.md has the full table).
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -233,6 +234,10 @@ class AgentConfig:
     action_noise: float = 0.2
     """Standard deviation of the Gaussian exploration noise on the [-1, 1] action, DDPG and TD3 only
     (HER paper and rl-baselines3-zoo: 0.2). SAC explores through its entropy term instead."""
+    action_l2: float = 0.0
+    """Weight of a penalty on the actor's squared actions (mean over the batch and the [-1, 1] action's
+    dimensions) added to the actor loss: OpenAI baselines' HER `action_l2` (1.0 on Fetch;
+    tsrl.agents.action_penalty). 0 (the paper's): none."""
     normalize: bool = True
     """Normalise observation, achieved and desired goal with running mean and std (VecNormalize;
     measured on FetchReach-v4: 90% success after 2,000 env steps with it, 28,000 without). The replay
@@ -267,8 +272,12 @@ class AgentConfig:
             )
         for name in ("learning_rate", "train_freq_episodes", "batch_size", "buffer_size", "clip_obs"):
             check_positive(name, getattr(self, name))
-        for name in ("gradient_steps", "learning_starts", "action_noise"):
+        for name in ("gradient_steps", "learning_starts", "action_noise", "action_l2"):
             check_positive(name, getattr(self, name), strict=False)
+        if not math.isfinite(self.action_l2):
+            raise InvalidConfig(
+                f"action_l2 must be a finite number >= 0 (0: no penalty); got {self.action_l2}"
+            )
         if not 0 < self.gamma <= 1:
             raise InvalidConfig(f"gamma must be in (0, 1]; got {self.gamma}")
         if not 0 < self.tau <= 1:
@@ -429,12 +438,14 @@ class TrainConfig:
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
-        runs of another learner preset than paper `__<learner>` (e.g. `__fast`).
+        runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
+        penalty `__action-l2-<weight>`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
         suffix += "__init" if self.init_from is not None else ""
         suffix += "" if self.agent.learner == "paper" else f"__{self.agent.learner}"
+        suffix += f"__action-l2-{self.agent.action_l2:g}" if self.agent.action_l2 else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

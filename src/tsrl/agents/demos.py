@@ -24,14 +24,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch as th
-from sb3_contrib import TQC
-from stable_baselines3 import SAC
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import DictReplayBufferSamples
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from torch.utils.hooks import RemovableHandle
 
 from ..envs.keys import OBS_KEYS
+from .action_penalty import actor_action
 from .config import DemoConfig
 from .demo_files import Demonstrations, DemoSpec, load_demos
 from .her import FeatureHerReplayBuffer
@@ -124,7 +123,7 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
         assert self.demo_buffer is not None
         demo = self.demo_buffer.sample(n, env)
         self.last_demo_batch = demo
-        return DictReplayBufferSamples(
+        self.last_batch = DictReplayBufferSamples(
             observations={
                 k: th.cat((replay.observations[k], demo.observations[k])) for k in replay.observations
             },
@@ -136,6 +135,7 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
             dones=th.cat((replay.dones, demo.dones)),
             rewards=th.cat((replay.rewards, demo.rewards)),
         )
+        return self.last_batch
 
     def set_env(self, env: VecEnv) -> None:
         super().set_env(env)
@@ -201,10 +201,6 @@ class BCLoss:
         self.weight = weight
         self.q_filter = q_filter
 
-    def _actor_action(self, obs: dict[str, th.Tensor]) -> th.Tensor:
-        actor = self.model.actor  # type: ignore[attr-defined]
-        return actor(obs, deterministic=True) if isinstance(self.model, (SAC, TQC)) else actor(obs)
-
     def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
         buffer = self.model.replay_buffer
         demo = buffer.last_demo_batch if isinstance(buffer, DemoReplayBuffer) else None
@@ -212,7 +208,7 @@ class BCLoss:
             return
         critic = self.model.critic  # type: ignore[attr-defined]
         with th.enable_grad():
-            pi = self._actor_action(demo.observations)
+            pi = actor_action(self.model, demo.observations)
             with th.no_grad():
                 q_demo = first_q(critic, demo.observations, demo.actions)
                 q_actor = first_q(critic, demo.observations, pi)

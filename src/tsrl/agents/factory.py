@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
+from .action_penalty import attach_action_penalty
 from .config import ALGOS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
@@ -157,5 +158,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         }
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
         attach_demos(model, a.demos, env if isinstance(env, VecNormalize) else None)
-        return model
-    return ALGO_CLASSES[a.algo](policy, env, **kwargs)
+    else:
+        model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
+    if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
+        attach_action_penalty(model, a.action_l2)
+    return model

@@ -37,6 +37,9 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
     Args (beyond HerReplayBuffer's):
         relabel_features: True (default) to recompute goal-dependent features through
             `env.relabel`; False gives stable-baselines3's plain HER (for comparisons).
+
+    The latest batch `sample` returned is `last_batch` (for losses added to the actor's, such as the
+    action penalty of tsrl.agents.action_penalty); it is not pickled.
     """
 
     def __init__(
@@ -121,6 +124,11 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
             rewards=self.to_torch(self._normalize_reward(rewards.reshape(-1, 1), env)),
         )
 
+    def sample(self, batch_size: int, env: VecNormalize | None = None) -> DictReplayBufferSamples:  # type: ignore[override]
+        """HerReplayBuffer's sample, kept as `last_batch`."""
+        self.last_batch: DictReplayBufferSamples | None = super().sample(batch_size, env)
+        return self.last_batch
+
     # -- compact pickling and growth ------------------------------------------------------------
     @property
     def n_stored(self) -> int:
@@ -129,6 +137,7 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
 
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
+        state["last_batch"] = None
         n = self.n_stored
         if n < self.buffer_size:  # store only the filled rows; __setstate__ pads them back
             for name in _DATA_ARRAYS:

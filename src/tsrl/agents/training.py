@@ -28,6 +28,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
 from ..signals import in_main_thread
+from .action_penalty import attach_action_penalty
 from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
@@ -161,6 +162,8 @@ class _Session:
             model.buffer_size = buffer.buffer_size
             if cfg.agent.demos.active:  # the demonstrations came back in the replay buffer
                 attach_bc_loss(model, cfg.agent.demos)
+            if cfg.agent.action_l2 > 0:
+                attach_action_penalty(model, cfg.agent.action_l2)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
             if self.venv.has_attr("continue_from"):  # DemoResets: its curriculum goes on, not from its start
