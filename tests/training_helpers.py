@@ -1,5 +1,5 @@
 """Helpers of the training tests: a seconds-long TrainConfig, damaged checkpoint files, a replay
-buffer filled with random episodes."""
+buffer filled with random episodes, the env steps a run logged a TensorBoard scalar at."""
 
 from __future__ import annotations
 
@@ -52,3 +52,16 @@ def fill_with_random_episodes(buffer, venv, episodes: int) -> None:
         real_next = {k: np.asarray(v).reshape(1, -1) for k, v in real_next.items()}
         buffer.add(obs, real_next, action, reward, done, infos)
         obs = next_obs
+
+
+def scalar_steps(run_dir: Path, tag: str) -> list[int]:
+    """The env steps at which the run's TensorBoard files (run_dir/tb) hold the scalar `tag`."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    steps = []
+    for events in (run_dir / "tb").glob("events.out.tfevents*"):
+        acc = EventAccumulator(str(events))
+        acc.Reload()
+        if tag in acc.Tags()["scalars"]:
+            steps += [e.step for e in acc.Scalars(tag)]
+    return steps

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch as th
-from training_helpers import tiny
+from training_helpers import scalar_steps, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, make_agent, make_vec_env, resume, train
@@ -89,16 +89,9 @@ def test_a_large_penalty_shrinks_the_actions():
 
 
 def test_a_resumed_run_keeps_the_penalty(tmp_path):
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
-
     run_dir = train(tiny(total=200, action_l2=1.0), tmp_path, progress_bar=False)
     resume(run_dir, total_timesteps=400, progress_bar=False)
-    steps = []
-    for events in (run_dir / "tb").glob("events.out.tfevents*"):
-        acc = EventAccumulator(str(events))
-        acc.Reload()
-        if "train/action_l2" in acc.Tags()["scalars"]:
-            steps += [e.step for e in acc.Scalars("train/action_l2")]
+    steps = scalar_steps(run_dir, "train/action_l2")
     assert max(steps) == 400
 
 

@@ -19,7 +19,7 @@ import pytest
 import torch as th
 from cli_runner import run_tsrl
 from stable_baselines3.common.vec_env import DummyVecEnv
-from training_helpers import fill_with_random_episodes, tiny
+from training_helpers import fill_with_random_episodes, scalar_steps, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import TrainConfig, make_agent, make_vec_env, resume, train
@@ -473,14 +473,7 @@ def test_training_with_demos_is_killed_and_resumes_with_the_demo_buffer_intact(r
         stored.observations["observation"][:, 0], demos.observation[:, :-1].reshape(-1, 15)
     )
     # The resumed session trained with the BC loss: TensorBoard has train/bc_loss after the kill.
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
-
-    steps = []
-    for events in (run_dir / "tb").glob("events.out.tfevents*"):
-        acc = EventAccumulator(str(events))
-        acc.Reload()
-        if "train/bc_loss" in acc.Tags()["scalars"]:
-            steps += [e.step for e in acc.Scalars("train/bc_loss")]
+    steps = scalar_steps(run_dir, "train/bc_loss")
     assert max(steps) == 500
 
 
