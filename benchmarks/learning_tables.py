@@ -282,20 +282,24 @@ def ablation_table(variants: dict[str, list[Path]], budget: int, reference: str 
 # The renderers that meta.json names ("benchmarks/learning_tables.py:table_<kind>"), one per kind.
 
 
-def table_ablation(data_dir: Path) -> list[str]:
-    """`ablation_table` of a data folder laid out <variant>/<run>/ (benchmarks/learning.py learner-ablation)."""
+def saved_variants(data_dir: Path) -> dict[str, list[Path]]:
+    """The run folders of a data folder laid out <variant>/<run>/, by variant."""
     variants: dict[str, list[Path]] = {}
     for run_dir in saved_runs(data_dir):
         variants.setdefault(run_dir.parent.name, []).append(run_dir)
+    return variants
+
+
+def table_ablation(data_dir: Path) -> list[str]:
+    """`ablation_table` of a data folder laid out <variant>/<run>/ (benchmarks/learning.py learner-ablation)."""
+    variants = saved_variants(data_dir)
     order = sorted(variants, key=lambda v: (v != "fast", v.startswith("screen-"), v))
     return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET)
 
 
 def table_small(data_dir: Path) -> list[str]:
     """`ablation_table` of a learner-small data folder laid out small-<name>/<run>/, against small-final."""
-    variants: dict[str, list[Path]] = {}
-    for run_dir in saved_runs(data_dir):
-        variants.setdefault(run_dir.parent.name, []).append(run_dir)
+    variants = saved_variants(data_dir)
     order = sorted(variants, key=lambda v: (v != "small-final", v))
     return ablation_table({v: variants[v] for v in order}, ABLATION_BUDGET, "small-final")
 

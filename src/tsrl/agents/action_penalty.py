@@ -54,11 +54,16 @@ class ActionPenalty:
         self.model.logger.record("train/action_l2", loss.item())
 
 
+def actor_optimizer(model: OffPolicyAlgorithm) -> th.optim.Optimizer:
+    """The optimizer of the model's actor (DDPG/TD3/SAC/TQC), where losses added to the actor's hook in."""
+    policy: Any = model.policy
+    optimizer = policy.actor.optimizer
+    assert isinstance(optimizer, th.optim.Optimizer)
+    return optimizer
+
+
 def attach_action_penalty(model: OffPolicyAlgorithm, weight: float) -> RemovableHandle:
     """Registers ActionPenalty on the actor's optimizer (after creating or loading a model whose
     AgentConfig.action_l2 is > 0)."""
     assert weight > 0
-    policy: Any = model.policy  # DDPG/TD3/SAC/TQC's policies have an actor with its optimizer
-    optimizer = policy.actor.optimizer
-    assert isinstance(optimizer, th.optim.Optimizer)
-    return optimizer.register_step_pre_hook(ActionPenalty(model, weight))
+    return actor_optimizer(model).register_step_pre_hook(ActionPenalty(model, weight))

@@ -30,7 +30,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from torch.utils.hooks import RemovableHandle
 
 from ..envs.keys import OBS_KEYS
-from .action_penalty import actor_action
+from .action_penalty import actor_action, actor_optimizer
 from .config import DemoConfig
 from .demo_files import Demonstrations, DemoSpec, load_demos
 from .her import FeatureHerReplayBuffer
@@ -231,7 +231,4 @@ def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandl
     """Registers BCLoss on the actor's optimizer (after creating or loading a model with
     demonstrations on, `cfg.active`)."""
     assert cfg.active
-    policy: Any = model.policy  # DDPG/TD3/SAC's policies have an actor with its optimizer
-    optimizer = policy.actor.optimizer
-    assert isinstance(optimizer, th.optim.Optimizer)
-    return optimizer.register_step_pre_hook(BCLoss(model, cfg.bc_weight, cfg.q_filter))
+    return actor_optimizer(model).register_step_pre_hook(BCLoss(model, cfg.bc_weight, cfg.q_filter))
