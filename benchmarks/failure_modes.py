@@ -17,7 +17,10 @@ tolerance. Classes of an object's failed episode, in this order:
   way, too little);
 - *moved, not towards the goal*: it moved, and ended more than half as far from the goal as it started.
 
-Also per run: the median number of steps successful episodes took to first meet the tolerance.
+Also per run: the median number of steps successful episodes took to first meet the tolerance, and
+how many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last 10 steps, the
+policy's deterministic action leaving the state as it was (a fixed point it cannot leave), where a
+policy still at work would move.
 """
 
 from __future__ import annotations
@@ -36,8 +39,10 @@ from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_ro
 from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
 from tsrl.agents.factory import make_env
 from tsrl.envs.base import TaskEnv
+from tsrl.taskmaps import resolve_frame
 
 MOVED = 0.01  # m
+STALL_STEPS, STALL_MOVE = 10, 0.001  # steps, m
 CLASSES = ("success", "not moved", "reached, then lost", "short of the goal", "moved, not towards the goal")
 
 
@@ -79,10 +84,19 @@ def classify(start: np.ndarray, path: np.ndarray, goal: np.ndarray, tolerance: f
     return "moved, not towards the goal"
 
 
+def stalled(tcp_path: np.ndarray) -> bool:
+    """Whether the TCP's positions after each step (T, 3) [m] stay within STALL_MOVE of where they
+    were STALL_STEPS steps before the end, over those last steps (an episode shorter than that: False)."""
+    if len(tcp_path) <= STALL_STEPS:
+        return False
+    last = tcp_path[-STALL_STEPS - 1 :]
+    return bool(np.max(np.linalg.norm(last - last[0], axis=1)) < STALL_MOVE)
+
+
 def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
     resets say, and the object's name where the goal has several), its env steps, and per class the
-    number of episodes."""
+    number of episodes, and how many failed episodes ended stalled."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped
@@ -91,22 +105,28 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     variant = family_variant(cfg.to_dict())  # the run name does not say the resets
     tolerance = base.task.success.position
     counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
+    stalls = [0 for _ in objects]
+    tcp = resolve_frame(base.model, "tcp")
+    tcp_positions = base.data.site_xpos if tcp.kind == "site" else base.data.xpos
     steps_to_success: list[list[int]] = [[] for _ in objects]
     for seed in fresh_eval_seeds(cfg.seed, episodes):
         obs, _ = env.reset(seed=seed)
         starts = [base.data.body(body).xpos.copy() for body, _ in objects]
         goal = np.asarray(obs["desired_goal"], dtype=float)
         paths: list[list[np.ndarray]] = [[] for _ in objects]
+        tcp_path: list[np.ndarray] = []
         done = False
         while not done:
             obs, _, terminated, truncated, _ = env.step(policy_action(model, normalizer, obs))
             for path, (body, _) in zip(paths, objects, strict=True):
                 path.append(base.data.body(body).xpos.copy())
+            tcp_path.append(tcp_positions[tcp.id].copy())
             done = terminated or truncated
         for i, (_, part) in enumerate(objects):
             positions = np.array(paths[i])
             kind = classify(starts[i], positions, goal[part], tolerance)
             counts[i][kind] += 1
+            stalls[i] += kind != "success" and stalled(np.array(tcp_path))
             if kind == "success":
                 within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
                 steps_to_success[i].append(int(np.argmax(within)) + 1)
@@ -119,8 +139,9 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             "episodes": episodes,
             **count,
             "median_steps_to_success": float(np.median(steps)) if steps else float("nan"),
+            "failed_stalled": stall,
         }
-        for (body, _), count, steps in zip(objects, counts, steps_to_success, strict=True)
+        for (body, _), count, steps, stall in zip(objects, counts, steps_to_success, stalls, strict=True)
     ]
 
 
@@ -130,17 +151,27 @@ def _label(run: str, parts: list[str]) -> str:
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
-    """The table (markdown) from `failure_modes`' rows (or their CSV strings)."""
+    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled column only
+    where every row has it (data saved before it was measured has not)."""
+    with_stalls = all("failed_stalled" in r for r in rows)
     lines = [
-        "| run | env steps | " + " | ".join(CLASSES) + " | median steps to success |",
-        "| --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |",
+        "| run | env steps | "
+        + " | ".join(CLASSES)
+        + " | median steps to success |"
+        + (" failed, ended stalled |" if with_stalls else ""),
+        "| --- | ---: | "
+        + " | ".join("---:" for _ in CLASSES)
+        + " | ---: |"
+        + (" ---: |" if with_stalls else ""),
     ]
     for r in rows:
         n = int(r["episodes"])
         cells = " | ".join(f"{int(r[c])} ({int(r[c]) / n:.0%})" for c in CLASSES)
         median = float(r["median_steps_to_success"])
+        stall = f" {int(r['failed_stalled'])} |" if with_stalls else ""
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
+            + stall
         )
     return lines
 

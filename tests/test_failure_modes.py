@@ -64,3 +64,15 @@ def test_classes_of_hand_made_paths() -> None:
     assert failure_modes.classify(start, np.vstack([line, line[::-1]]), goal, tol) == "reached, then lost"
     assert failure_modes.classify(start, line[:7], goal, tol) == "short of the goal"
     assert failure_modes.classify(start, -line, goal, tol) == "moved, not towards the goal"
+
+
+def test_stalled_is_a_tcp_still_over_the_last_steps() -> None:
+    n = failure_modes.STALL_STEPS
+    moving = np.linspace([0.0, 0.0, 0.0], [0.3, 0.0, 0.0], 3 * n)
+    assert not failure_modes.stalled(moving)
+    still_at_end = np.vstack([moving, np.repeat(moving[-1:], n, axis=0)])  # n steps at the last place
+    assert failure_modes.stalled(still_at_end)
+    jitter = still_at_end.copy()
+    jitter[-1, 1] += 2 * failure_modes.STALL_MOVE  # the last step moves 2 mm: not still
+    assert not failure_modes.stalled(jitter)
+    assert not failure_modes.stalled(np.zeros((n, 3)))  # too short to say
