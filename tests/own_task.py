@@ -1,6 +1,7 @@
 """A task on an arm written here, in a folder of its own as a user keeps one: the arm's MJCF (with a
 camera `top` looking down on it), its robot file and the task file (its own observation and action),
-for the CLI tests of task files (`tsrl train --task FILE`, `tsrl render --camera`)."""
+for the tests of task files (tests/envs/test_own_robot.py, `tsrl train --task FILE`, `tsrl render
+--camera`)."""
 
 from __future__ import annotations
 

@@ -15,74 +15,17 @@ import numpy as np
 import pytest
 import stable_baselines3.common.env_checker as sb3_checker
 from gymnasium.utils.env_checker import check_env
+from own_task import ARM_XML, ROBOT_TOML, TASK_TOML, write_task
 
 import tsrl
 from tsrl.envs import TASK_ENV_ID
 from tsrl.robot_model import RobotNotice
 from tsrl.settling import settle
 
-ARM_XML = """<mujoco model="arm3">
-  <compiler angle="radian" autolimits="true"/>
-  <option timestep="0.002"/>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
-    <body name="base" pos="0 0 0.1">
-      <joint name="yaw" axis="0 0 1" range="-3 3" damping="2" armature="0.1"/>
-      <geom type="cylinder" size="0.05 0.05"/>
-      <body name="upper" pos="0 0 0.05">
-        <joint name="shoulder" axis="0 1 0" range="-2 2" damping="2" armature="0.1"/>
-        <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03" mass="1"/>
-        <body name="fore" pos="0.4 0 0">
-          <joint name="elbow" axis="0 1 0" range="-2.5 2.5" damping="2" armature="0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.35 0 0" size="0.025" mass="0.5"/>
-          <site name="tool" pos="0.35 0 0"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <position name="yaw" joint="yaw" kp="100" kv="10"/>
-    <position name="shoulder" joint="shoulder" kp="150" kv="15"/>
-    <position name="elbow" joint="elbow" kp="100" kv="10"/>
-  </actuator>
-  <keyframe>
-    <key name="home" qpos="0 -0.5 1.0" ctrl="0 -0.5 1.0"/>
-  </keyframe>
-</mujoco>
-"""
-ROBOT_TOML = """name = "arm3"
-model = "arm.xml"
-joints = ["yaw", "shoulder", "elbow"]
-tcp = "tool"
-home = "home"
-actuators = ["yaw", "shoulder", "elbow"]
-"""
-TASK_TOML = """name = "Arm3Reach"
-robot = "arm.toml"
-scene = "arm.xml"
-observation = "position(tool), positionDiff(tool, target), jointState"
-episode_steps = 30
-
-[[action.parts]]
-map = "position(tool)"
-step = 0.05
-
-[goal]
-map = "position(tool)"
-
-[goal.position]
-center = [0.6, 0.0, 0.3]
-half_extent = [0.08, 0.08, 0.08]
-"""
-
 
 @pytest.fixture
 def task_file(tmp_path):
-    (tmp_path / "arm.xml").write_text(ARM_XML)
-    (tmp_path / "arm.toml").write_text(ROBOT_TOML)
-    path = tmp_path / "task.toml"
-    path.write_text(TASK_TOML)
-    return path
+    return write_task(tmp_path)
 
 
 def test_a_task_on_your_own_arm_passes_the_checker_and_is_solved(task_file):
