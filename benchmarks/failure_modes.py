@@ -18,9 +18,8 @@ tolerance. Classes of an object's failed episode, in this order:
 - *moved, not towards the goal*: it moved, and ended more than half as far from the goal as it started.
 
 Also per run: the median number of steps successful episodes took to first meet the tolerance, and
-how many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last 10 steps, the
-policy's deterministic action leaving the state as it was (a fixed point it cannot leave), where a
-policy still at work would move.
+how many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last 10 steps (the
+deterministic policy's action no longer moving it), where a policy still at work would move.
 """
 
 from __future__ import annotations
@@ -122,11 +121,12 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
                 path.append(base.data.body(body).xpos.copy())
             tcp_path.append(tcp_positions[tcp.id].copy())
             done = terminated or truncated
+        tcp_stalled = stalled(np.array(tcp_path))
         for i, (_, part) in enumerate(objects):
             positions = np.array(paths[i])
             kind = classify(starts[i], positions, goal[part], tolerance)
             counts[i][kind] += 1
-            stalls[i] += kind != "success" and stalled(np.array(tcp_path))
+            stalls[i] += kind != "success" and tcp_stalled
             if kind == "success":
                 within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
                 steps_to_success[i].append(int(np.argmax(within)) + 1)
