@@ -240,14 +240,13 @@ def auc_comparison(run_dirs: list[Path]) -> list[str]:
     return lines
 
 
-def ablation_table(variants: dict[str, list[Path]], budget: int, reference: str = "fast") -> list[str]:
-    """The learner ablation (issue 27): per variant ("fast", "without-<option>") its seeds' env steps to
-    95 % success, success at `budget` env steps (the target), IQM of AUC over the evaluations every run
-    has, the `reference` variant's IQM minus the variant's (the option's contribution: > 0 means it
-    helps) and the median training seconds to `budget` (evaluations excluded)."""
+def common_aucs(
+    curves: dict[str, list[list[dict[str, float]]]],
+) -> tuple[list[float], dict[str, np.ndarray]]:
+    """(the env steps at which every run of every variant was evaluated, per variant its seeds' AUC
+    over those evaluations (n seeds,)); curves: variant -> its runs' progress rows."""
     from tsrl.experiments import statistics as st
 
-    curves = {v: [read_progress_csv(d) for d in sorted(dirs, key=_seed)] for v, dirs in variants.items()}
     steps = sorted(set.intersection(*({r["env_steps"] for r in c} for cs in curves.values() for c in cs)))
     aucs = {
         v: st.area_under_curve(
@@ -256,6 +255,18 @@ def ablation_table(variants: dict[str, list[Path]], budget: int, reference: str 
         )
         for v, cs in curves.items()
     }
+    return steps, aucs
+
+
+def ablation_table(variants: dict[str, list[Path]], budget: int, reference: str = "fast") -> list[str]:
+    """The learner ablation (issue 27): per variant ("fast", "without-<option>") its seeds' env steps to
+    95 % success, success at `budget` env steps (the target), IQM of AUC over the evaluations every run
+    has, the `reference` variant's IQM minus the variant's (the option's contribution: > 0 means it
+    helps) and the median training seconds to `budget` (evaluations excluded)."""
+    from tsrl.experiments import statistics as st
+
+    curves = {v: [read_progress_csv(d) for d in sorted(dirs, key=_seed)] for v, dirs in variants.items()}
+    steps, aucs = common_aucs(curves)
     lines = [
         f"| variant | seeds | env steps to 95 % | success at {budget:,} | AUC, IQM [95%] | {reference} minus variant, AUC | training s to {budget:,} (median) |",
         "| --- | ---: | --- | --- | --- | --- | ---: |",
@@ -376,6 +387,58 @@ def table_family(data_dir: Path) -> list[str]:
         lines.append(
             f"| {task} | {target:,} | {seeds} | {final} | {half} | {steps_95} | {seconds_95} | {'yes' if met else 'no'} |"
         )
+    return lines
+
+
+def table_family_comparison(data_dir: Path) -> list[str]:
+    """Variants of one family task compared (benchmarks/merge_saved.py --table): per variant (what
+    `family_variant` says sets it apart) its seeds, success at the budget, env steps to 95 % and IQM of
+    AUC over the evaluations every run has, and each variant's IQM minus the baseline's (the variant
+    that adds least) with its 95% stratified-bootstrap interval: *helps* above 0, *hurts* below 0,
+    else *not decided*. Raises SystemExit naming the folder when it holds several tasks or no single
+    baseline."""
+    from tsrl.experiments import statistics as st
+
+    variants: dict[str, list[Path]] = {}
+    tasks, extras = set(), {}
+    for run_dir in saved_runs(data_dir):
+        config = json.loads((run_dir / "config.json").read_text())
+        tasks.add(config["env_id"])
+        extra = family_variant(config)
+        label = ", ".join(extra) or "learner paper"
+        extras[label] = len(extra)
+        variants.setdefault(label, []).append(run_dir)
+    fewest = min(extras.values(), default=0)
+    baselines = [v for v, n in extras.items() if n == fewest]
+    if len(tasks) != 1 or len(baselines) != 1:
+        raise SystemExit(
+            f"{data_dir}: tasks {sorted(tasks)}, variants adding least {baselines}; accepted: one task "
+            "and one variant that adds least (the baseline)"
+        )
+    baseline = baselines[0]
+    curves = {v: [read_progress_csv(d) for d in sorted(dirs, key=_seed)] for v, dirs in variants.items()}
+    steps, aucs = common_aucs(curves)
+    header = f"| `{tasks.pop()}` | seeds | success at the budget | env steps to 95 % | AUC, IQM [95%] "
+    lines = [
+        header + f"| minus {baseline}, AUC IQM [95%] | decided |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for v in sorted(curves, key=lambda v: (v != baseline, v)):
+        runs = curves[v]
+        seeds = ", ".join(str(_seed(d)) for d in sorted(variants[v], key=_seed))
+        final = ", ".join(f"{rows[-1]['eval_success_rate']:.2f}" for rows in runs)
+        reached = ", ".join(_steps(first_reaching(rows, THRESHOLDS[-1])[0]) for rows in runs)
+        e = st.iqm_interval(aucs[v])
+        diff, decided = "-", "-"
+        if v != baseline:
+            d = st.iqm_difference(aucs[v], aucs[baseline])
+            diff = f"{d.point[0]:+.3f} [{d.low[0]:+.3f}, {d.high[0]:+.3f}]"
+            decided = "helps" if d.low[0] > 0 else "hurts" if d.high[0] < 0 else "not decided"
+        lines.append(
+            f"| {v} | {seeds} | {final} | {reached} | {e.point[0]:.2f} [{e.low[0]:.2f}, {e.high[0]:.2f}] "
+            f"| {diff} | {decided} |"
+        )
+    lines += ["", f"AUC over the evaluations at {', '.join(f'{x:,.0f}' for x in steps)} env steps."]
     return lines
 
 

@@ -5,6 +5,8 @@ by the sources' renderer, so that a task's seeds stand in one row. Nothing is re
 names every source (its command, commit and training times).
 
     python benchmarks/merge_saved.py family-stack-peg family-peg-s2 --save family-stack-peg-5-seeds
+    python benchmarks/merge_saved.py family-push-action-l2 family-push-fast-intel \
+        --table table_family_comparison --save family-push-penalty-vs-fast   # variants side by side
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from typing import Any
 from learning_tables import RUN_FILES, saved_runs
 from record import DATA_ROOT, META, Measurement
 
+#: Renderers of benchmarks/learning_tables.py that `--table` may give merged run folders.
+MERGED_TABLES = ("table_family", "table_family_comparison")
 #: The meta.json keys of a source kept in the merged meta.json's "sources".
 SOURCE_KEYS = ("command", "commit", "started_utc", "ended_utc", "trained")
 
@@ -67,11 +71,19 @@ def main(argv: list[str] | None = None) -> None:
         "sources", nargs="+", help="names of saved measurements (docs/results/benchmarks/NAME/)"
     )
     parser.add_argument("--save", required=True, metavar="NAME", help="the merged data's new folder name")
+    parser.add_argument(
+        "--table",
+        choices=sorted(MERGED_TABLES),
+        help="render the merged runs with this table of benchmarks/learning_tables.py instead of the "
+        "sources' own (e.g. table_family_comparison: variants of one task against its baseline)",
+    )
     args = parser.parse_args(argv)
     if (DATA_ROOT / args.save).exists():
         parser.error(f"--save {args.save}: {DATA_ROOT / args.save} exists; accepted: a new name")
     metas, runs = plan(args.sources)
     table, doc = next((m["table"], m["doc"]) for m in metas.values())
+    if args.table:
+        table = f"benchmarks/learning_tables.py:{args.table}"
     with Measurement(args.save, __file__, table, doc) as out:
         assert out is not None
         copy_runs(runs, out)
