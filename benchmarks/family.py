@@ -7,6 +7,7 @@ reached 95 % within the task's target budget.
     python benchmarks/family.py --tasks PandaPush-v0 --seeds 0 1 --jobs 2
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast   # issue 27's preset as the remedy
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast --action-l2 1   # a penalty on actions
+    python benchmarks/family.py --tasks PandaPush-v0 --learner fast --algo tqc      # a stochastic actor
     python benchmarks/family.py --tasks PandaStack-v0 --demos-reset-prob 0.5 --demos-reset-curriculum-steps 100000
                                                      # resets to demonstration states, a reverse curriculum
     python benchmarks/learning.py family ...         # the same
@@ -44,7 +45,7 @@ from learning_tables import (
 from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
-from tsrl.agents.config import TASK_ACTION, DemoConfig, Learner
+from tsrl.agents.config import ALGOS, TASK_ACTION, Algo, DemoConfig, Learner
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
 TASKS: dict[str, tuple[int, int]] = {
@@ -83,20 +84,22 @@ def configs(
     learner: Learner = "paper",
     resets: DemoResets = None,
     action_l2: float = 0.0,
+    algo: Algo = "ddpg",
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
     symmetric sampling is a remedy the issue names) with the demonstrations, the task's own
     observation and action; `resets` (probability, curriculum env steps, curriculum success rate):
     episodes started from demonstration states, the other remedy (Nair et al.; a reverse curriculum
     paced by env steps where they are > 0, by success as RFCL's where the rate is > 0), None: the
-    learner's; `action_l2` > 0: a penalty on the actor's squared actions (AgentConfig.action_l2)."""
+    learner's; `action_l2` > 0: a penalty on the actor's squared actions (AgentConfig.action_l2);
+    `algo`: the off-policy algorithm under HER (the paper's DDPG; SAC and TQC: a stochastic actor)."""
     from tsrl.envs import load_task
 
     prob, steps, success = resets if resets is not None else (None, 0, 0.0)
     demo_config = DemoConfig(
         path=str(demos), reset_prob=prob, reset_curriculum_steps=steps, reset_curriculum_success=success
     )
-    agent = AgentConfig(learner=learner, demos=demo_config, action_l2=action_l2)
+    agent = AgentConfig(algo=algo, learner=learner, demos=demo_config, action_l2=action_l2)
     return [
         TrainConfig(
             env_id=f"tsrl/{task}",
@@ -149,6 +152,12 @@ def main(argv: list[str] | None = None) -> None:
         help="weight of a penalty on the actor's squared actions (OpenAI baselines' HER action_l2, 1.0 "
         "on Fetch; a remedy for reached-then-lost); default 0, none",
     )
+    parser.add_argument(
+        "--algo",
+        choices=ALGOS,
+        default="ddpg",
+        help="the off-policy algorithm under HER (default: the paper's ddpg; sac, tqc: a stochastic actor)",
+    )
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/family"))
     parser.add_argument(
         "--demos",
@@ -198,11 +207,15 @@ def main(argv: list[str] | None = None) -> None:
         target, eval_freq = TASKS[task]
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
-        cfgs = configs(task, args.seeds, total, eval_freq, demos, args.learner, resets, args.action_l2)
+        cfgs = configs(
+            task, args.seeds, total, eval_freq, demos, args.learner, resets, args.action_l2, args.algo
+        )
         parent = args.out_dir / run_parent(task, args.demos, resets)
         work += [(cfg, parent) for cfg in cfgs]
     print(
-        f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}", flush=True
+        f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}; "
+        f"algo {args.algo}",
+        flush=True,
     )
     table = "benchmarks/learning_tables.py:table_family"
     with Measurement(args.save, __file__, table, "docs/training.md") as out:

@@ -341,13 +341,15 @@ def table_own_robot(data_dir: Path) -> list[str]:
 
 def family_variant(config: dict[str, Any]) -> list[str]:
     """What sets a family run (benchmarks/family.py; its config.json as a dict) apart from the paper's
-    agent with 100 demonstrations, e.g. ["learner fast"], ["resets 0.5", "reverse curriculum over
-    100,000"]; [] for that agent. Its run name does not say the resets or the demonstration count."""
+    agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["resets 0.5",
+    "reverse curriculum over 100,000"]; [] for that agent. Its run name does not say the resets or the demonstration count."""
     demos = config["agent"]["demos"]
     count = Path(demos["path"] or "").stem.rsplit("-", 1)[-1]
     learner = config["agent"].get("learner", "paper")
     resets, curriculum = demos.get("reset_prob"), demos.get("reset_curriculum_steps", 0)
-    extra = [f"learner {learner}"] if learner != "paper" else []
+    algo = config["agent"]["algo"]
+    extra = [algo.upper()] if algo != "ddpg" else []
+    extra += [f"learner {learner}"] if learner != "paper" else []
     extra += [f"resets {resets}"] if resets else []
     extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
     paced = demos.get("reset_curriculum_success", 0.0)
