@@ -2,27 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
+from benchmark_modules import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _module(name: str) -> ModuleType:
-    sys.path.insert(0, str(ROOT / "benchmarks"))  # its siblings `learning`, `learning_tables`, `record`
-    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-family = _module("family")
-learning_tables = _module("learning_tables")
+family = load_benchmark("family")
+learning_tables = load_benchmark("learning_tables")
 
 
 def test_algo_reaches_every_run_and_names_its_variant(tmp_path: Path) -> None:

@@ -4,31 +4,18 @@ is not a measurement, a comparison of two tasks)."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 import shutil
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
+from benchmark_modules import load_benchmark
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / "docs" / "results" / "benchmarks"
+DATA = Path(__file__).resolve().parents[1] / "docs" / "results" / "benchmarks"
 
-
-def _module(name: str) -> ModuleType:
-    sys.path.insert(0, str(ROOT / "benchmarks"))  # its siblings `record`, `learning_tables`
-    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-merge_saved = _module("merge_saved")
-learning_tables = _module("learning_tables")
+merge_saved = load_benchmark("merge_saved")
+learning_tables = load_benchmark("learning_tables")
 
 
 def test_merged_runs_render_one_row_per_task_with_every_seed(tmp_path: Path) -> None:
