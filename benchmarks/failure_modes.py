@@ -17,9 +17,12 @@ tolerance. Classes of an object's failed episode, in this order:
   way, too little);
 - *moved, not towards the goal*: it moved, and ended more than half as far from the goal as it started.
 
-Also per run: the median number of steps successful episodes took to first meet the tolerance, and
-how many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last 10 steps (the
-deterministic policy's action no longer moving it), where a policy still at work would move.
+Also per run: the median number of steps successful episodes took to first meet the tolerance; how
+many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last 10 steps (the
+deterministic policy's action no longer moving it), where a policy still at work would move; and the
+share of the policy's action components *at a bound* of the action space (within 0.5 % of its range
+of either end: |a| >= 0.99 for [-1, 1]) over every step of every episode, a saturated deterministic
+actor's mark (full steps and a fully open or closed hand).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from typing import Any
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
+from gymnasium import spaces
 from learning_tables import family_variant
 from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
@@ -42,6 +46,7 @@ from tsrl.taskmaps import resolve_frame
 
 MOVED = 0.01  # m
 STALL_STEPS, STALL_MOVE = 10, 0.001  # steps, m
+AT_BOUND = 0.005  # of the action range, from either end
 CLASSES = ("success", "not moved", "reached, then lost", "short of the goal", "moved, not towards the goal")
 
 
@@ -92,10 +97,18 @@ def stalled(tcp_path: np.ndarray) -> bool:
     return bool(np.max(np.linalg.norm(last - last[0], axis=1)) < STALL_MOVE)
 
 
+def at_bound(actions: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Which components of actions (..., A) lie within AT_BOUND of the range of either bound (A,) of the
+    action space (a boolean array like actions)."""
+    margin = AT_BOUND * (high - low)
+    return (actions <= low + margin) | (actions >= high - margin)
+
+
 def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
-    resets say, and the object's name where the goal has several), its env steps, and per class the
-    number of episodes, and how many failed episodes ended stalled."""
+    resets say, and the object's name where the goal has several), its env steps, per class the
+    number of episodes, how many failed episodes ended stalled, and the share of action components
+    at a bound (the run's, the same in each of its rows)."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped
@@ -108,6 +121,9 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     tcp = resolve_frame(base.model, "tcp")
     tcp_positions = base.data.site_xpos if tcp.kind == "site" else base.data.xpos
     steps_to_success: list[list[int]] = [[] for _ in objects]
+    assert isinstance(env.action_space, spaces.Box)
+    low, high = env.action_space.low, env.action_space.high
+    bounded, components = 0, 0
     for seed in fresh_eval_seeds(cfg.seed, episodes):
         obs, _ = env.reset(seed=seed)
         starts = [base.data.body(body).xpos.copy() for body, _ in objects]
@@ -116,7 +132,10 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
         tcp_path: list[np.ndarray] = []
         done = False
         while not done:
-            obs, _, terminated, truncated, _ = env.step(policy_action(model, normalizer, obs))
+            action = policy_action(model, normalizer, obs)
+            bounded += int(np.count_nonzero(at_bound(action, low, high)))
+            components += action.size
+            obs, _, terminated, truncated, _ = env.step(action)
             for path, (body, _) in zip(paths, objects, strict=True):
                 path.append(base.data.body(body).xpos.copy())
             tcp_path.append(tcp_positions[tcp.id].copy())
@@ -140,6 +159,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             **count,
             "median_steps_to_success": float(np.median(steps)) if steps else float("nan"),
             "failed_stalled": stall,
+            "actions_at_bound": bounded / components,
         }
         for (body, _), count, steps, stall in zip(objects, counts, steps_to_success, stalls, strict=True)
     ]
@@ -151,27 +171,32 @@ def _label(run: str, parts: list[str]) -> str:
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
-    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled column only
-    where every row has it (data saved before it was measured has not)."""
+    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled and the
+    at-a-bound columns each only where every row has it (data saved before it was measured has not)."""
     with_stalls = all("failed_stalled" in r for r in rows)
+    with_bounds = all("actions_at_bound" in r for r in rows)
     lines = [
         "| run | env steps | "
         + " | ".join(CLASSES)
         + " | median steps to success |"
-        + (" failed, ended stalled |" if with_stalls else ""),
+        + (" failed, ended stalled |" if with_stalls else "")
+        + (" actions at a bound |" if with_bounds else ""),
         "| --- | ---: | "
         + " | ".join("---:" for _ in CLASSES)
         + " | ---: |"
-        + (" ---: |" if with_stalls else ""),
+        + (" ---: |" if with_stalls else "")
+        + (" ---: |" if with_bounds else ""),
     ]
     for r in rows:
         n = int(r["episodes"])
         cells = " | ".join(f"{int(r[c])} ({int(r[c]) / n:.0%})" for c in CLASSES)
         median = float(r["median_steps_to_success"])
         stall = f" {int(r['failed_stalled'])} |" if with_stalls else ""
+        bound = f" {float(r['actions_at_bound']):.0%} |" if with_bounds else ""
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
             + stall
+            + bound
         )
     return lines
 

@@ -62,3 +62,32 @@ def test_stalled_is_a_tcp_still_over_the_last_steps() -> None:
     jitter[-1, 1] += 2 * failure_modes.STALL_MOVE  # the last step moves 2 mm: not still
     assert not failure_modes.stalled(jitter)
     assert not failure_modes.stalled(np.zeros((n, 3)))  # too short to say
+
+
+def test_at_bound_is_within_half_a_percent_of_the_range_from_either_end() -> None:
+    low, high = np.array([-1.0, 0.0]), np.array([1.0, 0.08])  # a [-1, 1] part and a width in m
+    actions = np.array(
+        [
+            [-1.0, 0.0],  # both at their lower bounds
+            [0.995, 0.0798],  # both within 0.5 % of the range of the upper bound
+            [0.985, 0.0795],  # both just outside that margin
+            [0.0, 0.04],  # both in the middle
+        ]
+    )
+    expected = np.array([[True, True], [True, True], [False, False], [False, False]])
+    np.testing.assert_array_equal(failure_modes.at_bound(actions, low, high), expected)
+
+
+def test_render_shows_the_bound_column_only_where_every_row_has_it() -> None:
+    row = {
+        "run": "r",
+        "env_steps": 100,
+        "episodes": 4,
+        **dict.fromkeys(failure_modes.CLASSES, 1),
+        "median_steps_to_success": 3.0,
+        "failed_stalled": 0,
+    }
+    assert "at a bound" not in failure_modes.render([row])[0]
+    lines = failure_modes.render([{**row, "actions_at_bound": 0.375}])
+    assert lines[0].endswith("| actions at a bound |")
+    assert lines[2].endswith("| 0 | 38% |")
