@@ -22,7 +22,10 @@ many failed episodes ended *stalled*: the TCP moved less than 1 mm over the last
 deterministic policy's action no longer moving it), where a policy still at work would move; and the
 share of the policy's action components *at a bound* of the action space (within 0.5 % of its range
 of either end: |a| >= 0.99 for [-1, 1]) over every step of every episode, a saturated deterministic
-actor's mark (full steps and a fully open or closed hand).
+actor's mark (full steps and a fully open or closed hand); and how many *reached, then lost* episodes
+ended with the object *touching the robot* (a MuJoCo contact between one of its geoms and a geom of the
+robot's kinematic tree at the last step: carried off or pushed by the hand, rather than dropped or
+left).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import mujoco
 import numpy as np
 from gymnasium import spaces
 from learning_tables import family_variant
@@ -104,11 +108,23 @@ def at_bound(actions: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarr
     return (actions <= low + margin) | (actions >= high - margin)
 
 
+def touches(model: mujoco.MjModel, data: mujoco.MjData, body: int, root: int) -> bool:
+    """Whether a contact of `data` (the last collision pass: at the start of the last physics step) is
+    between a geom of body `body` and a geom of a body in the kinematic tree rooted at body `root`."""
+    for contact in data.contact[: data.ncon]:
+        bodies = model.geom_bodyid[[contact.geom1, contact.geom2]]
+        roots = model.body_rootid[bodies]
+        if (bodies[0] == body and roots[1] == root) or (bodies[1] == body and roots[0] == root):
+            return True
+    return False
+
+
 def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
     resets say, and the object's name where the goal has several), its env steps, per class the
-    number of episodes, how many failed episodes ended stalled, and the share of action components
-    at a bound (the run's, the same in each of its rows)."""
+    number of episodes, how many failed episodes ended stalled, how many reached-then-lost ones ended
+    with the object touching the robot, and the share of action components at a bound (the run's, the
+    same in each of its rows)."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped
@@ -118,7 +134,10 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     tolerance = base.task.success.position
     counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
     stalls = [0 for _ in objects]
+    lost_touching = [0 for _ in objects]
     tcp = resolve_frame(base.model, "tcp")
+    tcp_body = base.model.site_bodyid[tcp.id] if tcp.kind == "site" else tcp.id
+    robot_root = int(base.model.body_rootid[tcp_body])
     tcp_positions = base.data.site_xpos if tcp.kind == "site" else base.data.xpos
     steps_to_success: list[list[int]] = [[] for _ in objects]
     assert isinstance(env.action_space, spaces.Box)
@@ -146,6 +165,8 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             kind = classify(starts[i], positions, goal[part], tolerance)
             counts[i][kind] += 1
             stalls[i] += kind != "success" and tcp_stalled
+            if kind == "reached, then lost":
+                lost_touching[i] += touches(base.model, base.data, base.model.body(objects[i][0]).id, robot_root)
             if kind == "success":
                 within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
                 steps_to_success[i].append(int(np.argmax(within)) + 1)
@@ -159,9 +180,12 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             **count,
             "median_steps_to_success": float(np.median(steps)) if steps else float("nan"),
             "failed_stalled": stall,
+            "lost_touching": touching,
             "actions_at_bound": bounded / components,
         }
-        for (body, _), count, steps, stall in zip(objects, counts, steps_to_success, stalls, strict=True)
+        for (body, _), count, steps, stall, touching in zip(
+            objects, counts, steps_to_success, stalls, lost_touching, strict=True
+        )
     ]
 
 
@@ -172,19 +196,23 @@ def _label(run: str, parts: list[str]) -> str:
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
     """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled and the
-    at-a-bound columns each only where every row has it (data saved before it was measured has not)."""
+    at-a-bound and the lost-touching columns each only where every row has it (data saved before it was
+    measured has not)."""
     with_stalls = all("failed_stalled" in r for r in rows)
+    with_touching = all("lost_touching" in r for r in rows)
     with_bounds = all("actions_at_bound" in r for r in rows)
     lines = [
         "| run | env steps | "
         + " | ".join(CLASSES)
         + " | median steps to success |"
         + (" failed, ended stalled |" if with_stalls else "")
+        + (" lost, ended touching the robot |" if with_touching else "")
         + (" actions at a bound |" if with_bounds else ""),
         "| --- | ---: | "
         + " | ".join("---:" for _ in CLASSES)
         + " | ---: |"
         + (" ---: |" if with_stalls else "")
+        + (" ---: |" if with_touching else "")
         + (" ---: |" if with_bounds else ""),
     ]
     for r in rows:
@@ -192,10 +220,12 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
         cells = " | ".join(f"{int(r[c])} ({int(r[c]) / n:.0%})" for c in CLASSES)
         median = float(r["median_steps_to_success"])
         stall = f" {int(r['failed_stalled'])} |" if with_stalls else ""
+        touching = f" {int(r['lost_touching'])} |" if with_touching else ""
         bound = f" {float(r['actions_at_bound']):.0%} |" if with_bounds else ""
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
             + stall
+            + touching
             + bound
         )
     return lines

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import mujoco
 import numpy as np
 import pytest
 from benchmark_modules import load_benchmark
@@ -91,3 +92,38 @@ def test_render_shows_the_bound_column_only_where_every_row_has_it() -> None:
     lines = failure_modes.render([{**row, "actions_at_bound": 0.375}])
     assert lines[0].endswith("| actions at a bound |")
     assert lines[2].endswith("| 0 | 38% |")
+
+
+def test_touches_is_a_contact_between_the_body_and_a_tree() -> None:
+    env = TaskEnv("PandaPickPlaceGripper-v0")
+    try:
+        env.reset(seed=0)
+        model, data = env.model, env.data
+        box = model.body("box").id
+        robot = int(model.body_rootid[model.body("finger_left").id])
+        mujoco.mj_forward(model, data)
+        assert failure_modes.touches(model, data, box, 0)  # resting on the table, a world geom
+        assert not failure_modes.touches(model, data, box, robot)  # at reset, clear of the hand
+        joint = model.body_jntadr[box]
+        data.qpos[model.jnt_qposadr[joint] : model.jnt_qposadr[joint] + 3] = data.body("finger_left").xpos
+        mujoco.mj_forward(model, data)  # the box's centre inside the left finger: in contact
+        assert failure_modes.touches(model, data, box, robot)
+        assert not failure_modes.touches(model, data, box, int(model.body_rootid[model.body("target").id]))
+    finally:
+        env.close()
+
+
+def test_render_shows_the_touching_column_only_where_every_row_has_it() -> None:
+    row = {
+        "run": "r",
+        "env_steps": 100,
+        "episodes": 4,
+        **dict.fromkeys(failure_modes.CLASSES, 1),
+        "median_steps_to_success": 3.0,
+        "failed_stalled": 0,
+        "actions_at_bound": 0.375,
+    }
+    assert "touching" not in failure_modes.render([row])[0]
+    lines = failure_modes.render([{**row, "lost_touching": 1}, {**row, "lost_touching": 0}])
+    assert lines[0].endswith("| lost, ended touching the robot | actions at a bound |")
+    assert lines[2].endswith("| 0 | 1 | 38% |") and lines[3].endswith("| 0 | 0 | 38% |")
