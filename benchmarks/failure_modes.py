@@ -166,7 +166,9 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             counts[i][kind] += 1
             stalls[i] += kind != "success" and tcp_stalled
             if kind == "reached, then lost":
-                lost_touching[i] += touches(base.model, base.data, base.model.body(objects[i][0]).id, robot_root)
+                lost_touching[i] += touches(
+                    base.model, base.data, base.model.body(objects[i][0]).id, robot_root
+                )
             if kind == "success":
                 within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
                 steps_to_success[i].append(int(np.argmax(within)) + 1)
