@@ -25,7 +25,8 @@ of either end: |a| >= 0.99 for [-1, 1]) over every step of every episode, a satu
 actor's mark (full steps and a fully open or closed hand); and how many *reached, then lost* episodes
 ended with the object *touching the robot* (a MuJoCo contact between one of its geoms and a geom of the
 robot's kinematic tree at the last step: carried off or pushed by the hand, rather than dropped or
-left).
+left), and how many were *held when last at the goal* (touching the robot at the last step the object
+was within the tolerance: it left the goal from the hand, rather than after it was put down).
 """
 
 from __future__ import annotations
@@ -123,7 +124,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
     resets say, and the object's name where the goal has several), its env steps, per class the
     number of episodes, how many failed episodes ended stalled, how many reached-then-lost ones ended
-    with the object touching the robot, and the share of action components at a bound (the run's, the
+    with the object touching the robot and how many were held when last at the goal, and the share of action components at a bound (the run's, the
     same in each of its rows)."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
@@ -135,6 +136,8 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
     stalls = [0 for _ in objects]
     lost_touching = [0 for _ in objects]
+    lost_held = [0 for _ in objects]
+    object_ids = [base.model.body(body).id for body, _ in objects]
     tcp = resolve_frame(base.model, "tcp")
     tcp_body = base.model.site_bodyid[tcp.id] if tcp.kind == "site" else tcp.id
     robot_root = int(base.model.body_rootid[tcp_body])
@@ -149,6 +152,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
         goal = np.asarray(obs["desired_goal"], dtype=float)
         paths: list[list[np.ndarray]] = [[] for _ in objects]
         tcp_path: list[np.ndarray] = []
+        touching: list[list[bool]] = [[] for _ in objects]
         done = False
         while not done:
             action = policy_action(model, normalizer, obs)
@@ -158,6 +162,8 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             for path, (body, _) in zip(paths, objects, strict=True):
                 path.append(base.data.body(body).xpos.copy())
             tcp_path.append(tcp_positions[tcp.id].copy())
+            for touched, body_id in zip(touching, object_ids, strict=True):
+                touched.append(touches(base.model, base.data, body_id, robot_root))
             done = terminated or truncated
         tcp_stalled = stalled(np.array(tcp_path))
         for i, (_, part) in enumerate(objects):
@@ -165,12 +171,11 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             kind = classify(starts[i], positions, goal[part], tolerance)
             counts[i][kind] += 1
             stalls[i] += kind != "success" and tcp_stalled
+            within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
             if kind == "reached, then lost":
-                lost_touching[i] += touches(
-                    base.model, base.data, base.model.body(objects[i][0]).id, robot_root
-                )
+                lost_touching[i] += touching[i][-1]
+                lost_held[i] += touching[i][int(np.flatnonzero(within)[-1])]
             if kind == "success":
-                within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
                 steps_to_success[i].append(int(np.argmax(within)) + 1)
     env.close()
     return [
@@ -182,11 +187,12 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             **count,
             "median_steps_to_success": float(np.median(steps)) if steps else float("nan"),
             "failed_stalled": stall,
-            "lost_touching": touching,
+            "lost_touching": ended_touching,
+            "lost_held": held,
             "actions_at_bound": bounded / components,
         }
-        for (body, _), count, steps, stall, touching in zip(
-            objects, counts, steps_to_success, stalls, lost_touching, strict=True
+        for (body, _), count, steps, stall, ended_touching, held in zip(
+            objects, counts, steps_to_success, stalls, lost_touching, lost_held, strict=True
         )
     ]
 
@@ -197,11 +203,12 @@ def _label(run: str, parts: list[str]) -> str:
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
-    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled and the
-    at-a-bound and the lost-touching columns each only where every row has it (data saved before it was
+    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled, at-a-bound,
+    lost-touching and lost-held columns each only where every row has it (data saved before it was
     measured has not)."""
     with_stalls = all("failed_stalled" in r for r in rows)
     with_touching = all("lost_touching" in r for r in rows)
+    with_held = all("lost_held" in r for r in rows)
     with_bounds = all("actions_at_bound" in r for r in rows)
     lines = [
         "| run | env steps | "
@@ -209,12 +216,14 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
         + " | median steps to success |"
         + (" failed, ended stalled |" if with_stalls else "")
         + (" lost, ended touching the robot |" if with_touching else "")
+        + (" lost, held when last at the goal |" if with_held else "")
         + (" actions at a bound |" if with_bounds else ""),
         "| --- | ---: | "
         + " | ".join("---:" for _ in CLASSES)
         + " | ---: |"
         + (" ---: |" if with_stalls else "")
         + (" ---: |" if with_touching else "")
+        + (" ---: |" if with_held else "")
         + (" ---: |" if with_bounds else ""),
     ]
     for r in rows:
@@ -223,11 +232,13 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
         median = float(r["median_steps_to_success"])
         stall = f" {int(r['failed_stalled'])} |" if with_stalls else ""
         touching = f" {int(r['lost_touching'])} |" if with_touching else ""
+        held = f" {int(r['lost_held'])} |" if with_held else ""
         bound = f" {float(r['actions_at_bound']):.0%} |" if with_bounds else ""
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
             + stall
             + touching
+            + held
             + bound
         )
     return lines

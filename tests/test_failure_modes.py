@@ -113,7 +113,7 @@ def test_touches_is_a_contact_between_the_body_and_a_tree() -> None:
         env.close()
 
 
-def test_render_shows_the_touching_column_only_where_every_row_has_it() -> None:
+def test_render_shows_the_touching_columns_only_where_every_row_has_them() -> None:
     row = {
         "run": "r",
         "env_steps": 100,
@@ -127,3 +127,8 @@ def test_render_shows_the_touching_column_only_where_every_row_has_it() -> None:
     lines = failure_modes.render([{**row, "lost_touching": 1}, {**row, "lost_touching": 0}])
     assert lines[0].endswith("| lost, ended touching the robot | actions at a bound |")
     assert lines[2].endswith("| 0 | 1 | 38% |") and lines[3].endswith("| 0 | 0 | 38% |")
+    lines = failure_modes.render([{**row, "lost_touching": 0, "lost_held": 1}])
+    assert lines[0].endswith(
+        "| lost, ended touching the robot | lost, held when last at the goal | actions at a bound |"
+    )
+    assert lines[2].endswith("| 0 | 0 | 1 | 38% |")
