@@ -10,6 +10,8 @@ reached 95 % within the task's target budget.
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast --algo tqc      # a stochastic actor
     python benchmarks/family.py --tasks PandaStack-v0 --demos-reset-prob 0.5 --demos-reset-curriculum-steps 100000
                                                      # resets to demonstration states, a reverse curriculum
+    python benchmarks/family.py --tasks task_files/panda_push_half_step.toml --learner fast
+                                                     # a task file: a family task's variant (its `solver`)
     python benchmarks/learning.py family ...         # the same
 
 | task | target (env steps, every seed at 95 %) | best anchor known |
@@ -18,6 +20,9 @@ reached 95 % within the task's target budget.
 | gripper pick-and-place | 60,000 | Fetch pick-and-place + 100 demos: ~0.9 at ~400,000 |
 | stack | 150,000 | panda-gym stack, TQC + HER: mostly fails at 1,000,000 |
 | peg insertion (2 mm) | 150,000 | ManiSkill PegInsertionSide: solved from sparse reward by a reverse curriculum |
+
+A task file in --tasks (a path ending in .toml) is a variant of the family task its `solver` key names
+(another action map, say): it runs with that task's budget, evaluation period and scripted solver.
 
 Runs are ordinary run folders under --out-dir (default results/benchmarks/family/<task>/): a finished
 one is reused, an interrupted one resumed. The demonstrations are recorded once per task (seed 0, the
@@ -36,6 +41,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from learning import in_parallel, train_or_resume
 from learning_tables import (
     THRESHOLDS,
+    family_label,
     family_variant,
     first_reaching,
     group_table,
@@ -46,6 +52,7 @@ from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
 from tsrl.agents.config import ALGOS, TASK_ACTION, Algo, DemoConfig, Learner
+from tsrl.exceptions import InvalidConfig
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
 TASKS: dict[str, tuple[int, int]] = {
@@ -61,16 +68,48 @@ DEMO_EPISODES = 100
 DemoResets = tuple[float, int, float] | None
 
 
+def is_task_file(task: str) -> bool:
+    """Whether `task` (an entry of --tasks) is a task file rather than a family task's name."""
+    return task.endswith(".toml")
+
+
+def env_id(task: str) -> str:
+    """The environment id of an entry of --tasks: tsrl/<name>, or the task file's absolute path (as
+    TrainConfig keeps it)."""
+    return str(Path(task).expanduser().resolve()) if is_task_file(task) else f"tsrl/{task}"
+
+
+def task_label(task: str) -> str:
+    """An entry of --tasks as run folders and demonstration files name it: the name, or the file's stem."""
+    return Path(task).stem if is_task_file(task) else task
+
+
+def family_task(task: str) -> str:
+    """The family task whose budget and solver apply to an entry of --tasks: a name of TASKS itself, or
+    a task file's `solver` (InvalidConfig, one line, where that is not a family task)."""
+    from tsrl.envs import load_task
+
+    if not is_task_file(task):
+        return task
+    solver = load_task(task).solver
+    if solver not in TASKS:
+        raise InvalidConfig(
+            f"{task}: solver = {solver!r}; a family variant needs the family task it varies, accepted: "
+            f"{', '.join(TASKS)}"
+        )
+    return solver
+
+
 def record(task: str, out_dir: Path, episodes: int = DEMO_EPISODES) -> Path:
-    """The task's `episodes` successful scripted demonstrations in its own observation and action,
-    recorded once."""
+    """The task's (a family task's name or a task file's) `episodes` successful scripted
+    demonstrations in its own observation and action, recorded once."""
     from tsrl.agents.demo_files import save_demos, summary_line
     from tsrl.agents.demonstrators import record_demos
     from tsrl.envs import load_task
 
-    path = out_dir / "demos" / f"{task}-scripted-{episodes}.npz"
+    path = out_dir / "demos" / f"{task_label(task)}-scripted-{episodes}.npz"
     if not path.is_file():
-        demos = record_demos(f"tsrl/{task}", episodes, obs=load_task(task).observation, seed=0)
+        demos = record_demos(env_id(task), episodes, obs=load_task(task).observation, seed=0)
         print(summary_line(demos, save_demos(demos, path)), flush=True)
     return path
 
@@ -102,7 +141,7 @@ def configs(
     agent = AgentConfig(algo=algo, learner=learner, demos=demo_config, action_l2=action_l2)
     return [
         TrainConfig(
-            env_id=f"tsrl/{task}",
+            env_id=env_id(task),
             obs=load_task(task).observation,
             action=TASK_ACTION,
             seed=s,
@@ -118,7 +157,7 @@ def configs(
 def run_parent(task: str, demos: int, resets: DemoResets) -> str:
     """The folder of a task's runs under --out-dir: one per variant, since a run's name does not say
     its demonstration count or resets (a finished run found there is reused)."""
-    name = task if demos == DEMO_EPISODES else f"{task}-demos-{demos}"
+    name = task_label(task) + ("" if demos == DEMO_EPISODES else f"-demos-{demos}")
     if resets is not None:
         name += f"-resets-{resets[0]:g}" + (f"-curriculum-{resets[1]}" if resets[1] else "")
         name += f"-paced-{resets[2]:g}" if resets[2] else ""
@@ -134,7 +173,13 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--tasks", nargs="+", choices=sorted(TASKS), default=list(TASKS))
+    parser.add_argument(
+        "--tasks",
+        nargs="+",
+        default=list(TASKS),
+        help=f"family tasks ({', '.join(TASKS)}; default: all) or task files (PATH.toml) whose `solver` "
+        "is one of them",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument(
         "--total-timesteps", type=int, default=None, help="per run (default: the task's target)"
@@ -202,9 +247,18 @@ def main(argv: list[str] | None = None) -> None:
         if args.demos_reset_prob is None
         else (args.demos_reset_prob, args.demos_reset_curriculum_steps, args.demos_reset_curriculum_success)
     )
+    for task in args.tasks:
+        if not is_task_file(task) and task not in TASKS:
+            parser.error(
+                f"--tasks: {task!r} is not a family task; accepted: {', '.join(TASKS)}, or a PATH.toml"
+            )
+        try:
+            family_task(task)
+        except InvalidConfig as err:
+            parser.error(str(err))
     work = []
     for task in args.tasks:
-        target, eval_freq = TASKS[task]
+        target, eval_freq = TASKS[family_task(task)]
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
         cfgs = configs(
@@ -227,11 +281,11 @@ def main(argv: list[str] | None = None) -> None:
         "| --- | ---: | --- | --- |",
     ]
     for task in args.tasks:
-        run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == f"tsrl/{task}"]
-        variant = family_variant(next(cfg for cfg, _ in work if cfg.env_id == f"tsrl/{task}").to_dict())
-        label = f"tsrl/{task}" + (f" ({', '.join(variant)})" if variant else "")  # as the saved table
+        run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == env_id(task)]
+        variant = family_variant(next(cfg for cfg, _ in work if cfg.env_id == env_id(task)).to_dict())
+        label = family_label(env_id(task)) + (f" ({', '.join(variant)})" if variant else "")  # as saved
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
-        target = TASKS[task][0]
+        target = TASKS[family_task(task)][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
         cells = ", ".join("not reached" if math.isnan(s) else f"{s:,.0f}" for s in steps)
         met = all(not math.isnan(s) and s <= target for s in steps)

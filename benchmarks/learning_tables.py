@@ -339,6 +339,12 @@ def table_own_robot(data_dir: Path) -> list[str]:
     return suite_lines("own_robot", saved_runs(data_dir))
 
 
+def family_label(env_id: str) -> str:
+    """A family run's environment as its tables name it: the id, or a task file's file name (its
+    path is the machine's)."""
+    return Path(env_id).name if env_id.endswith(".toml") else env_id
+
+
 def family_variant(config: dict[str, Any]) -> list[str]:
     """What sets a family run (benchmarks/family.py; its config.json as a dict) apart from the paper's
     agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["resets 0.5",
@@ -373,7 +379,7 @@ def table_family(data_dir: Path) -> list[str]:
     for run_dir in saved_runs(data_dir):
         config = json.loads((run_dir / "config.json").read_text())
         extra = family_variant(config)
-        name = f"`{config['env_id']}`" + (f" ({', '.join(extra)})" if extra else "")
+        name = f"`{family_label(config['env_id'])}`" + (f" ({', '.join(extra)})" if extra else "")
         by_task.setdefault(name, []).append(run_dir)
     for task, run_dirs in by_task.items():
         run_dirs = sorted(run_dirs, key=_seed)

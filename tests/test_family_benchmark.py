@@ -30,3 +30,42 @@ def test_an_unknown_algo_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
         family.main(["--algo", "ppo"])
     assert exit_info.value.code == 2
     assert "--algo: invalid choice: 'ppo'" in capsys.readouterr().err
+
+
+HALF_STEP = ROOT / "benchmarks" / "task_files" / "panda_push_half_step.toml"
+
+
+def test_a_task_file_runs_as_the_family_task_its_solver_names(tmp_path: Path) -> None:
+    from tsrl.envs import load_task
+
+    task = str(HALF_STEP)
+    assert (
+        family.family_task(task) == "PandaPush-v0" and family.family_task("PandaStack-v0") == "PandaStack-v0"
+    )
+    half, push = load_task(task), load_task("PandaPush-v0")
+    assert half.action_spec.parts[0].step == push.action_spec.parts[0].step / 2  # the one change it makes
+    assert half.observation == push.observation and half.goal == push.goal
+    cfgs = family.configs(task, [0, 1], 30_000, 2_500, tmp_path / "demos.npz", "fast")
+    assert {c.env_id for c in cfgs} == {family.env_id(task)} == {str(HALF_STEP.resolve())}
+    assert family.run_parent(task, 100, None) == "panda_push_half_step"
+    assert learning_tables.family_label(cfgs[0].env_id) == "panda_push_half_step.toml"
+    assert learning_tables.family_label("tsrl/PandaPush-v0") == "tsrl/PandaPush-v0"
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("PandaReach-v0", "--tasks: 'PandaReach-v0' is not a family task; accepted: PandaPush-v0"),
+        ("reach.toml", "solver = 'PandaReach-v0'; a family variant needs the family task it varies"),
+    ],
+)
+def test_tasks_outside_the_family_are_refused(
+    entry: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = HALF_STEP.read_text().replace('solver = "PandaPush-v0"', 'solver = "PandaReach-v0"')
+    (tmp_path / "reach.toml").write_text(text)
+    task = str(tmp_path / entry) if entry.endswith(".toml") else entry
+    with pytest.raises(SystemExit) as exit_info:
+        family.main(["--tasks", task])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
