@@ -79,15 +79,19 @@ def test_at_bound_is_within_half_a_percent_of_the_range_from_either_end() -> Non
     np.testing.assert_array_equal(failure_modes.at_bound(actions, low, high), expected)
 
 
+#: A data row of `failure_modes` as saved before the optional columns were measured.
+ROW = {
+    "run": "r",
+    "env_steps": 100,
+    "episodes": 4,
+    **dict.fromkeys(failure_modes.CLASSES, 1),
+    "median_steps_to_success": 3.0,
+    "failed_stalled": 0,
+}
+
+
 def test_render_shows_the_bound_column_only_where_every_row_has_it() -> None:
-    row = {
-        "run": "r",
-        "env_steps": 100,
-        "episodes": 4,
-        **dict.fromkeys(failure_modes.CLASSES, 1),
-        "median_steps_to_success": 3.0,
-        "failed_stalled": 0,
-    }
+    row = ROW
     assert "at a bound" not in failure_modes.render([row])[0]
     lines = failure_modes.render([{**row, "actions_at_bound": 0.375}])
     assert lines[0].endswith("| actions at a bound |")
@@ -114,15 +118,7 @@ def test_touches_is_a_contact_between_the_body_and_a_tree() -> None:
 
 
 def test_render_shows_the_touching_columns_only_where_every_row_has_them() -> None:
-    row = {
-        "run": "r",
-        "env_steps": 100,
-        "episodes": 4,
-        **dict.fromkeys(failure_modes.CLASSES, 1),
-        "median_steps_to_success": 3.0,
-        "failed_stalled": 0,
-        "actions_at_bound": 0.375,
-    }
+    row = {**ROW, "actions_at_bound": 0.375}
     assert "touching" not in failure_modes.render([row])[0]
     lines = failure_modes.render([{**row, "lost_touching": 1}, {**row, "lost_touching": 0}])
     assert lines[0].endswith("| lost, ended touching the robot | actions at a bound |")
