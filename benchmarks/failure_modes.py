@@ -124,8 +124,8 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
     resets say, and the object's name where the goal has several), its env steps, per class the
     number of episodes, how many failed episodes ended stalled, how many reached-then-lost ones ended
-    with the object touching the robot and how many were held when last at the goal, and the share of action components at a bound (the run's, the
-    same in each of its rows)."""
+    with the object touching the robot and how many were held when last at the goal, and the share
+    of action components at a bound (the run's, the same in each of its rows)."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
     base = env.unwrapped

@@ -51,7 +51,7 @@ from learning_tables import (
 from record import Measurement, add_save_argument
 
 from tsrl.agents import AgentConfig, TrainConfig
-from tsrl.agents.config import ALGOS, TASK_ACTION, Algo, DemoConfig, Learner
+from tsrl.agents.config import ALGOS, TASK_ACTION, TASK_FILE_SUFFIX, Algo, DemoConfig, Learner
 from tsrl.exceptions import InvalidConfig
 
 #: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
@@ -70,13 +70,12 @@ DemoResets = tuple[float, int, float] | None
 
 def is_task_file(task: str) -> bool:
     """Whether `task` (an entry of --tasks) is a task file rather than a family task's name."""
-    return task.endswith(".toml")
+    return task.endswith(TASK_FILE_SUFFIX)
 
 
 def env_id(task: str) -> str:
-    """The environment id of an entry of --tasks: tsrl/<name>, or the task file's absolute path (as
-    TrainConfig keeps it)."""
-    return str(Path(task).expanduser().resolve()) if is_task_file(task) else f"tsrl/{task}"
+    """The environment id of an entry of --tasks: tsrl/<name>, or the task file's path."""
+    return task if is_task_file(task) else f"tsrl/{task}"
 
 
 def task_label(task: str) -> str:
@@ -256,7 +255,7 @@ def main(argv: list[str] | None = None) -> None:
             family_task(task)
         except InvalidConfig as err:
             parser.error(str(err))
-    work = []
+    work, work_tasks = [], []  # each run, and the --tasks entry it belongs to
     for task in args.tasks:
         target, eval_freq = TASKS[family_task(task)]
         demos = record(task, args.out_dir, args.demos)
@@ -266,6 +265,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         parent = args.out_dir / run_parent(task, args.demos, resets)
         work += [(cfg, parent) for cfg in cfgs]
+        work_tasks += [task] * len(cfgs)
     print(
         f"{len(work)} runs: {', '.join(args.tasks)}; seeds {args.seeds}; learner {args.learner}; "
         f"algo {args.algo}",
@@ -281,9 +281,10 @@ def main(argv: list[str] | None = None) -> None:
         "| --- | ---: | --- | --- |",
     ]
     for task in args.tasks:
-        run_dirs = [d for (cfg, _), d in zip(work, done, strict=True) if cfg.env_id == env_id(task)]
-        variant = family_variant(next(cfg for cfg, _ in work if cfg.env_id == env_id(task)).to_dict())
-        label = family_label(env_id(task)) + (f" ({', '.join(variant)})" if variant else "")  # as saved
+        runs = [(cfg, d) for (cfg, _), d, t in zip(work, done, work_tasks, strict=True) if t == task]
+        run_dirs = [d for _, d in runs]
+        variant = family_variant(runs[0][0].to_dict())
+        label = family_label(runs[0][0].env_id) + (f" ({', '.join(variant)})" if variant else "")  # as saved
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
         target = TASKS[family_task(task)][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from tsrl.agents.config import TASK_FILE_SUFFIX
+
 THRESHOLDS = (0.5, 0.9, 0.95)
 #: A run folder's files that its table is made of.
 RUN_FILES = ("progress.csv", "config.json")
@@ -342,7 +344,7 @@ def table_own_robot(data_dir: Path) -> list[str]:
 def family_label(env_id: str) -> str:
     """A family run's environment as its tables name it: the id, or a task file's file name (its
     path is the machine's)."""
-    return Path(env_id).name if env_id.endswith(".toml") else env_id
+    return Path(env_id).name if env_id.endswith(TASK_FILE_SUFFIX) else env_id
 
 
 def family_variant(config: dict[str, Any]) -> list[str]:
