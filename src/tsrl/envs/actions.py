@@ -66,6 +66,9 @@ class ActionSpec:
         suction: whether a last action dimension commands the suction cup (on above 0).
         gripper: whether a last action dimension sets the gripper's opening width: the gripper
             servo's target is low + (a + 1) / 2 (high - low), its control range [m].
+        gripper_open_close: with `gripper`, the dimension opens or closes instead: the servo's
+            target is high above 0 and low at or below it (as the suction cup switches), so a
+            closing command is always the full grip.
     """
 
     parts: tuple[ActionPart, ...] = ()
@@ -73,12 +76,24 @@ class ActionSpec:
     joint_step: float = 0.04 * math.pi
     suction: bool = False
     gripper: bool = False
+    gripper_open_close: bool = False
 
     def __post_init__(self) -> None:
         if self.suction and self.gripper:
             raise InvalidConfig(
                 "action: suction and gripper are both true; accepted: one tool dimension at most"
             )
+        if self.gripper_open_close and not self.gripper:
+            raise InvalidConfig(
+                "action: gripper_open_close = true without gripper = true; accepted: "
+                "gripper_open_close only with a gripper dimension"
+            )
+
+    def with_tool_of(self, other: ActionSpec) -> ActionSpec:
+        """This action with `other`'s tool dimension (suction or gripper, and how the gripper's acts)."""
+        return dataclasses.replace(
+            self, suction=other.suction, gripper=other.gripper, gripper_open_close=other.gripper_open_close
+        )
 
     @property
     def uses_ik(self) -> bool:
@@ -115,7 +130,7 @@ ACTION_MODES: dict[str, str] = {
 def action_mode(spec: ActionSpec) -> str:
     """The built-in mode (ACTION_PRESETS) `spec` is, with or without its suction dimension; else "task"."""
     for name, preset in ACTION_PRESETS.items():
-        if dataclasses.replace(preset, suction=spec.suction, gripper=spec.gripper) == spec:
+        if preset.with_tool_of(spec) == spec:
             return name
     return "task"
 

@@ -139,7 +139,8 @@ class TaskEnv(gym.Env, EzPickle):
                 f"the task's action has suction, but robot {self.robot.name!r} has no suction actuator"
             )
         self._suction_ctrl = self.bound_robot.suction_ctrl if task.action_spec.suction else None
-        self._gripper: tuple[int, float, float] | None = None  # ctrl index, width at a = -1, width per unit
+        # ctrl index, width at a = -1, width per unit, whether the dimension only opens or closes
+        self._gripper: tuple[int, float, float, bool] | None = None
         if task.action_spec.gripper:
             g = self.bound_robot.gripper_ctrl
             if g is None:
@@ -147,7 +148,7 @@ class TaskEnv(gym.Env, EzPickle):
                     f"the task's action has a gripper dimension, but robot {self.robot.name!r} has no gripper"
                 )
             low, high = self.model.actuator_ctrlrange[g]
-            self._gripper = (g, float(low), float(high - low) / 2)
+            self._gripper = (g, float(low), float(high - low) / 2, task.action_spec.gripper_open_close)
         self.goal = Goal(task, self.model, self.robot.joints)
         self.plan = StepPlan(self.model, self.obs_spec, self.goal, self.action_map.ik_map, self.robot.joints)
         self.goal.check_relabelable(self.plan.obs_map)
@@ -240,8 +241,9 @@ class TaskEnv(gym.Env, EzPickle):
         if self._suction_ctrl is not None:
             self._ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
         if self._gripper is not None:
-            g, low, half_span = self._gripper
-            self._ctrl[g] = low + (a[-1] + 1.0) * half_span
+            g, low, half_span, open_close = self._gripper
+            command = (1.0 if a[-1] > 0 else -1.0) if open_close else a[-1]
+            self._ctrl[g] = low + (command + 1.0) * half_span
         warnings_before = self._instability_count()
         substeps = self.n_substeps if perturb is None else perturb.substeps(self.np_random)
         mujoco.mj_step(self.model, self.data, nstep=substeps)

@@ -48,7 +48,10 @@ def layout(env: TaskEnv) -> Layout:
         action.append(("suction", "on above 0"))
     if spec.gripper and env.bound_robot.gripper_ctrl is not None:
         low, high = env.model.actuator_ctrlrange[env.bound_robot.gripper_ctrl]
-        action.append(("gripper", f"opening width {low:g} to {high:g} m"))
+        if spec.gripper_open_close:
+            action.append(("gripper", f"open ({high:g} m) above 0, closed ({low:g} m) at or below"))
+        else:
+            action.append(("gripper", f"opening width {low:g} to {high:g} m"))
     return Layout(observation, goal, tuple(action), env.task.control_dt)
 
 

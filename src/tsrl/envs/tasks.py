@@ -316,10 +316,7 @@ class Task:
         if action is not None:
             if action not in ACTION_PRESETS:
                 raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_PRESETS)}")
-            spec = self.action_spec
-            overrides["action"] = dataclasses.replace(
-                ACTION_PRESETS[action], suction=spec.suction, gripper=spec.gripper
-            )
+            overrides["action"] = ACTION_PRESETS[action].with_tool_of(self.action_spec)
         if success_radius is not None:
             if isinstance(success_radius, bool) or not success_radius > 0:
                 raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
