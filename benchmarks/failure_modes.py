@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -202,44 +203,39 @@ def _label(run: str, parts: list[str]) -> str:
     return f"{run} ({', '.join(parts)})" if parts else run
 
 
+#: Columns after the median that data saved before they were measured lacks: (header, the keys a row
+#: needs, the cell), each shown only where every row has its keys.
+OPTIONAL_COLUMNS: tuple[tuple[str, tuple[str, ...], Callable[[dict[str, Any]], str]], ...] = (
+    ("failed, ended stalled", ("failed_stalled",), lambda r: f"{int(r['failed_stalled'])}"),
+    ("lost, ended touching the robot", ("lost_touching",), lambda r: f"{int(r['lost_touching'])}"),
+    ("lost, held when last at the goal", ("lost_held",), lambda r: f"{int(r['lost_held'])}"),
+    (
+        "goal lifted: episodes, failed, reached then lost",
+        ("lifted_goals", "failed_lifted", "lost_lifted"),
+        lambda r: f"{int(r['lifted_goals'])}, {int(r['failed_lifted'])}, {int(r['lost_lifted'])}",
+    ),
+    ("actions at a bound", ("actions_at_bound",), lambda r: f"{float(r['actions_at_bound']):.0%}"),
+)
+
+
 def render(rows: list[dict[str, Any]]) -> list[str]:
-    """The table (markdown) from `failure_modes`' rows (or their CSV strings); the stalled, at-a-bound,
-    lost-touching and lost-held columns each only where every row has it (data saved before it was
-    measured has not)."""
-    with_stalls = all("failed_stalled" in r for r in rows)
-    with_touching = all("lost_touching" in r for r in rows)
-    with_held = all("lost_held" in r for r in rows)
-    with_bounds = all("actions_at_bound" in r for r in rows)
+    """The table (markdown) from `failure_modes`' rows (or their CSV strings); each of OPTIONAL_COLUMNS
+    only where every row has it (data saved before it was measured has not)."""
+    shown = [c for c in OPTIONAL_COLUMNS if all(key in r for r in rows for key in c[1])]
     lines = [
         "| run | env steps | "
         + " | ".join(CLASSES)
         + " | median steps to success |"
-        + (" failed, ended stalled |" if with_stalls else "")
-        + (" lost, ended touching the robot |" if with_touching else "")
-        + (" lost, held when last at the goal |" if with_held else "")
-        + (" actions at a bound |" if with_bounds else ""),
-        "| --- | ---: | "
-        + " | ".join("---:" for _ in CLASSES)
-        + " | ---: |"
-        + (" ---: |" if with_stalls else "")
-        + (" ---: |" if with_touching else "")
-        + (" ---: |" if with_held else "")
-        + (" ---: |" if with_bounds else ""),
+        + "".join(f" {header} |" for header, _, _ in shown),
+        "| --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |" + " ---: |" * len(shown),
     ]
     for r in rows:
         n = int(r["episodes"])
         cells = " | ".join(f"{int(r[c])} ({int(r[c]) / n:.0%})" for c in CLASSES)
         median = float(r["median_steps_to_success"])
-        stall = f" {int(r['failed_stalled'])} |" if with_stalls else ""
-        touching = f" {int(r['lost_touching'])} |" if with_touching else ""
-        held = f" {int(r['lost_held'])} |" if with_held else ""
-        bound = f" {float(r['actions_at_bound']):.0%} |" if with_bounds else ""
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
-            + stall
-            + touching
-            + held
-            + bound
+            + "".join(f" {cell(r)} |" for _, _, cell in shown)
         )
     return lines
 
