@@ -26,7 +26,9 @@ actor's mark (full steps and a fully open or closed hand); and how many *reached
 ended with the object *touching the robot* (a MuJoCo contact between one of its geoms and a geom of the
 robot's kinematic tree at the last step: carried off or pushed by the hand, rather than dropped or
 left), and how many were *held when last at the goal* (touching the robot at the last step the object
-was within the tolerance: it left the goal from the hand, rather than after it was put down).
+was within the tolerance: it left the goal from the hand, rather than after it was put down); and of
+the episodes whose goal was *lifted* (more than 1 cm above the object's start: in the air, not on the
+table), how many there were, how many failed and how many were *reached, then lost*.
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ from tsrl.envs.base import TaskEnv
 from tsrl.taskmaps import resolve_frame
 
 MOVED = 0.01  # m
+LIFTED = 0.01  # m: a goal this far above the object's start is a lifted one
 STALL_STEPS, STALL_MOVE = 10, 0.001  # steps, m
 AT_BOUND = 0.005  # of the action range, from either end
 CLASSES = ("success", "not moved", "reached, then lost", "short of the goal", "moved, not towards the goal")
@@ -94,6 +97,12 @@ def classify(start: np.ndarray, path: np.ndarray, goal: np.ndarray, tolerance: f
     return "moved, not towards the goal"
 
 
+def lifted(start: np.ndarray, goal: np.ndarray) -> bool:
+    """Whether the goal (3,) lies more than LIFTED above the object's start (3,) [m, world z up]: a goal
+    in the air rather than on the surface the object starts on."""
+    return bool(goal[2] - start[2] > LIFTED)
+
+
 def stalled(tcp_path: np.ndarray) -> bool:
     """Whether the TCP's positions after each step (T, 3) [m] stay within STALL_MOVE of where they
     were STALL_STEPS steps before the end, over those last steps (an episode shorter than that: False)."""
@@ -125,7 +134,8 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
     resets say, and the object's name where the goal has several), its env steps, per class the
     number of episodes, how many failed episodes ended stalled, how many reached-then-lost ones ended
-    with the object touching the robot and how many were held when last at the goal, and the share
+    with the object touching the robot and how many were held when last at the goal, how many
+    episodes had a lifted goal and how many of those failed or were reached then lost, and the share
     of action components at a bound (the run's, the same in each of its rows)."""
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     env = make_env(cfg)
@@ -138,6 +148,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     stalls = [0 for _ in objects]
     lost_touching = [0 for _ in objects]
     lost_held = [0 for _ in objects]
+    lifted_goals, failed_lifted, lost_lifted = ([0 for _ in objects] for _ in range(3))
     object_ids = [base.model.body(body).id for body, _ in objects]
     tcp = resolve_frame(base.model, "tcp")
     tcp_body = base.model.site_bodyid[tcp.id] if tcp.kind == "site" else tcp.id
@@ -171,6 +182,10 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             positions = np.array(paths[i])
             kind = classify(starts[i], positions, goal[part], tolerance)
             counts[i][kind] += 1
+            if lifted(starts[i], goal[part]):
+                lifted_goals[i] += 1
+                failed_lifted[i] += kind != "success"
+                lost_lifted[i] += kind == "reached, then lost"
             stalls[i] += kind != "success" and tcp_stalled
             within = np.linalg.norm(positions - goal[part], axis=1) <= tolerance
             if kind == "reached, then lost":
@@ -190,10 +205,22 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
             "failed_stalled": stall,
             "lost_touching": ended_touching,
             "lost_held": held,
+            "lifted_goals": n_lifted,
+            "failed_lifted": n_failed,
+            "lost_lifted": n_lost,
             "actions_at_bound": bounded / components,
         }
-        for (body, _), count, steps, stall, ended_touching, held in zip(
-            objects, counts, steps_to_success, stalls, lost_touching, lost_held, strict=True
+        for (body, _), count, steps, stall, ended_touching, held, n_lifted, n_failed, n_lost in zip(
+            objects,
+            counts,
+            steps_to_success,
+            stalls,
+            lost_touching,
+            lost_held,
+            lifted_goals,
+            failed_lifted,
+            lost_lifted,
+            strict=True,
         )
     ]
 

@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import mujoco
 import numpy as np
 import pytest
 from benchmark_modules import load_benchmark
+from training_helpers import tiny
 
+from tsrl.agents.evaluation import fresh_eval_seeds
+from tsrl.agents.factory import make_env
+from tsrl.agents.training import train
+from tsrl.envs import load_task
 from tsrl.envs.base import TaskEnv
 
 failure_modes = load_benchmark("failure_modes")
@@ -128,3 +134,42 @@ def test_render_shows_the_touching_columns_only_where_every_row_has_them() -> No
         "| lost, ended touching the robot | lost, held when last at the goal | actions at a bound |"
     )
     assert lines[2].endswith("| 0 | 0 | 1 | 38% |")
+
+
+def test_lifted_is_a_goal_more_than_a_centimetre_above_the_start() -> None:
+    start = np.array([-0.4, 0.1, 0.02])
+    assert not failure_modes.lifted(start, start + [0.2, -0.1, 0.0])  # on the table
+    assert not failure_modes.lifted(start, start + [0.0, 0.0, 0.009])
+    assert failure_modes.lifted(start, start + [0.0, 0.0, 0.011])
+    assert not failure_modes.lifted(start, start - [0.0, 0.0, 0.2])  # below: not lifted
+
+
+def test_render_shows_the_lifted_column_only_where_every_row_has_its_counts() -> None:
+    row = {**ROW, "actions_at_bound": 0.375}
+    counts = {"lifted_goals": 48, "failed_lifted": 20, "lost_lifted": 9}
+    assert "lifted" not in failure_modes.render([row, {**row, **counts}])[0]
+    assert "lifted" not in failure_modes.render([{**row, "lifted_goals": 48, "failed_lifted": 20}])[0]
+    lines = failure_modes.render([{**row, **counts}])
+    assert lines[0].endswith("| goal lifted: episodes, failed, reached then lost | actions at a bound |")
+    assert lines[2].endswith("| 0 | 48, 20, 9 | 38% |")
+
+
+def test_a_gripper_runs_rows_count_its_episodes_and_lifted_goals(tmp_path) -> None:
+    """A seconds-long run on the gripper pick-and-place: the classes partition the episodes, and the
+    lifted-goal counts match the goals of the same fresh evaluation seeds counted here."""
+    task_file = str(load_task("PandaPickPlaceGripper-v0").source)
+    cfg = dataclasses.replace(tiny(total=100), env_id=task_file)
+    run = train(cfg, tmp_path, progress_bar=False)
+    episodes = 8
+    (row,) = failure_modes.failure_modes(run, episodes)
+    assert sum(row[c] for c in failure_modes.CLASSES) == episodes
+    env = make_env(cfg)
+    expected = 0
+    for seed in fresh_eval_seeds(cfg.seed, episodes):
+        obs, _ = env.reset(seed=seed)
+        expected += obs["desired_goal"][2] - env.unwrapped.data.body("box").xpos[2] > 0.01
+    env.close()
+    assert 0 < expected < episodes  # half the goals are lifted: the check can fail either way
+    assert row["lifted_goals"] == expected
+    assert row["lost_lifted"] <= row["failed_lifted"] <= row["lifted_goals"]
+    assert row["lost_lifted"] <= row["reached, then lost"]
