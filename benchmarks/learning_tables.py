@@ -368,6 +368,22 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     return extra
 
 
+def compared_task(env_id: str) -> tuple[str, list[str]]:
+    """(the family task, what the run's task adds to it) of a family run's env_id: the id itself and
+    nothing, or for a task file (benchmarks/task_files/, by file name: a run's path is its machine's)
+    the tsrl id of its `solver`, the family task it varies, and the file's name. Raises SystemExit
+    naming the file where it is not under benchmarks/task_files/."""
+    if not env_id.endswith(TASK_FILE_SUFFIX):
+        return env_id, []
+    from tsrl.envs import load_task
+
+    name = Path(env_id).name
+    path = Path(__file__).resolve().parent / "task_files" / name
+    if not path.is_file():
+        raise SystemExit(f"{env_id}: no task file {name!r} in {path.parent}; accepted: one of its files")
+    return f"tsrl/{load_task(str(path)).solver}", [name]
+
+
 def table_family(data_dir: Path) -> list[str]:
     """The manipulation family's summary (benchmarks/family.py): per task, its target budget (the
     runs' total env steps), the seeds run, each seed's success at the budget, env steps to 50 % and
@@ -405,7 +421,7 @@ def table_family_comparison(data_dir: Path) -> list[str]:
     `family_variant` says sets it apart) its seeds, success at the budget, env steps to 95 % and IQM of
     AUC over the evaluations every run has, and each variant's IQM minus the baseline's (the variant
     that adds least) with its 95% stratified-bootstrap interval: *helps* above 0, *hurts* below 0,
-    else *not decided*. Raises SystemExit naming the folder when it holds several tasks or no single
+    else *not decided*. A task file's runs are a variant of the family task it varies. Raises SystemExit naming the folder when it holds several tasks or no single
     baseline."""
     from tsrl.experiments import statistics as st
 
@@ -413,8 +429,9 @@ def table_family_comparison(data_dir: Path) -> list[str]:
     tasks, extras = set(), {}
     for run_dir in saved_runs(data_dir):
         config = json.loads((run_dir / "config.json").read_text())
-        tasks.add(config["env_id"])
-        extra = family_variant(config)
+        task, task_extra = compared_task(config["env_id"])
+        tasks.add(task)
+        extra = task_extra + family_variant(config)
         label = ", ".join(extra) or "learner paper"
         extras[label] = len(extra)
         variants.setdefault(label, []).append(run_dir)

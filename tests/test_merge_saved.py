@@ -86,3 +86,20 @@ def test_comparison_of_two_tasks_is_refused(tmp_path: Path) -> None:
     merge_saved.copy_runs(runs, tmp_path)
     with pytest.raises(SystemExit, match="accepted: one task and one variant that adds least"):
         learning_tables.table_family_comparison(tmp_path)
+
+
+def test_a_task_files_runs_are_a_variant_of_the_family_task_its_solver_names(tmp_path: Path) -> None:
+    _, runs = merge_saved.plan(["family-push-demos300", "family-push-half-step-demos300"])
+    merge_saved.copy_runs(runs, tmp_path)
+    lines = learning_tables.table_family_comparison(tmp_path)
+    assert lines[0].startswith("| `tsrl/PandaPush-v0` |")
+    baseline, half_step = (line.split(" | ") for line in lines[2:4])
+    assert baseline[0] == "| learner fast, 300 demonstrations" and baseline[5] == "-"
+    assert half_step[0] == "| panda_push_half_step.toml, learner fast, 300 demonstrations"
+    assert half_step[1] == "0, 1, 2, 3, 4" and half_step[6] != "-"
+
+
+def test_a_task_file_outside_benchmarks_task_files_is_refused() -> None:
+    assert learning_tables.compared_task("tsrl/PandaPush-v0") == ("tsrl/PandaPush-v0", [])
+    with pytest.raises(SystemExit, match="no task file 'elsewhere.toml' in .*task_files; accepted"):
+        learning_tables.compared_task("/some/machine/elsewhere.toml")
