@@ -98,9 +98,16 @@ def machine() -> dict[str, Any]:
     }
 
 
-def code_state(script: str) -> tuple[str, list[str]]:
-    """(HEAD's commit, the files of CODE_PATHS and `script` with uncommitted edits)."""
-    status = _git("status", "--porcelain", "--", *CODE_PATHS, script)
+def code_files(script: str, table: str) -> tuple[str, ...]:
+    """The files besides CODE_PATHS whose edits change a measurement: the benchmark `script` and the
+    module of its renderer `table` ("benchmarks/other.py:function", or a function of the script)."""
+    module = table.split(":", 1)[0] if ":" in table else script
+    return tuple(dict.fromkeys((script, module)))
+
+
+def code_state(files: tuple[str, ...]) -> tuple[str, list[str]]:
+    """(HEAD's commit, the files of CODE_PATHS and `files` with uncommitted edits)."""
+    status = _git("status", "--porcelain", "--", *CODE_PATHS, *files)
     return _git("rev-parse", "HEAD").strip(), [line[3:] for line in status.splitlines() if line]
 
 
@@ -114,11 +121,11 @@ def save_meta(
     code_at_start: tuple[str, list[str]],
 ) -> Path:
     """meta.json of a measurement: the command (this process's argv), the commit it started on and the
-    files of CODE_PATHS and `script` with uncommitted edits at its start or end (none: the measurement
+    files of CODE_PATHS, `script` and `table`'s module with uncommitted edits at its start or end (none: the measurement
     is the commit's; a commit made meanwhile is named as commit_at_end), the machine, the start and
     end (UTC), and where its table is rendered (`table`) and shown (`doc`)."""
     commit, dirty = code_at_start
-    commit_at_end, dirty_at_end = code_state(script)
+    commit_at_end, dirty_at_end = code_state(code_files(script, table))
     meta = {
         "command": " ".join(["python", script, *sys.argv[1:]]),
         "commit": commit,
@@ -150,7 +157,7 @@ class Measurement:
     def __enter__(self) -> Path | None:
         self.started = dt.datetime.now(dt.UTC)
         self.load = [round(x, 2) for x in os.getloadavg()]
-        self.code = code_state(self.script)
+        self.code = code_state(code_files(self.script, self.table))
         if self.name is not None:
             self.out = data_dir(self.name)
         return self.out

@@ -1,0 +1,24 @@
+"""benchmarks/record.py: which files' uncommitted edits a saved measurement's meta.json names."""
+
+from __future__ import annotations
+
+import re
+
+from benchmark_modules import load_benchmark
+
+record = load_benchmark("record")
+
+
+def test_the_table_renderers_module_counts_as_the_measurements_code() -> None:
+    assert record.code_files("benchmarks/merge_saved.py", "benchmarks/learning_tables.py:table_family") == (
+        "benchmarks/merge_saved.py",
+        "benchmarks/learning_tables.py",
+    )
+    assert record.code_files("benchmarks/solvers.py", "table") == ("benchmarks/solvers.py",)
+
+
+def test_code_state_names_the_head_commit_and_only_files_it_was_asked_about() -> None:
+    commit, dirty = record.code_state(("benchmarks/record.py",))
+    assert re.fullmatch(r"[0-9a-f]{40}", commit)
+    allowed = ("src", "pyproject.toml", "benchmarks/record.py", "benchmarks/fetch_compat.py")
+    assert all(path.startswith(allowed) for path in dirty)
