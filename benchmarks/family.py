@@ -40,6 +40,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from learning import in_parallel, train_or_resume
 from learning_tables import (
+    FAMILY_TASKS,
     THRESHOLDS,
     family_label,
     family_variant,
@@ -54,13 +55,6 @@ from tsrl.agents import AgentConfig, TrainConfig
 from tsrl.agents.config import ALGOS, TASK_ACTION, TASK_FILE_SUFFIX, Algo, DemoConfig, Learner
 from tsrl.exceptions import InvalidConfig
 
-#: Task -> (target budget [env steps], evaluation every [env steps]); 100 evaluation episodes each.
-TASKS: dict[str, tuple[int, int]] = {
-    "PandaPush-v0": (30_000, 2_500),
-    "PandaPickPlaceGripper-v0": (60_000, 2_500),
-    "PandaStack-v0": (150_000, 10_000),
-    "PandaPegInsert-v0": (150_000, 10_000),
-}
 EVAL_EPISODES = 100
 DEMO_EPISODES = 100
 #: Resets to demonstration states: (probability, reverse-curriculum env steps, reverse-curriculum
@@ -84,17 +78,17 @@ def task_label(task: str) -> str:
 
 
 def family_task(task: str) -> str:
-    """The family task whose budget and solver apply to an entry of --tasks: a name of TASKS itself, or
+    """The family task whose budget and solver apply to an entry of --tasks: a name of FAMILY_TASKS itself, or
     a task file's `solver` (InvalidConfig, one line, where that is not a family task)."""
     from tsrl.envs import load_task
 
     if not is_task_file(task):
         return task
     solver = load_task(task).solver
-    if solver not in TASKS:
+    if solver not in FAMILY_TASKS:
         raise InvalidConfig(
             f"{task}: solver = {solver!r}; a family variant needs the family task it varies, accepted: "
-            f"{', '.join(TASKS)}"
+            f"{', '.join(FAMILY_TASKS)}"
         )
     return solver
 
@@ -175,8 +169,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--tasks",
         nargs="+",
-        default=list(TASKS),
-        help=f"family tasks ({', '.join(TASKS)}; default: all) or task files (PATH.toml) whose `solver` "
+        default=list(FAMILY_TASKS),
+        help=f"family tasks ({', '.join(FAMILY_TASKS)}; default: all) or task files (PATH.toml) whose `solver` "
         "is one of them",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
@@ -247,9 +241,9 @@ def main(argv: list[str] | None = None) -> None:
         else (args.demos_reset_prob, args.demos_reset_curriculum_steps, args.demos_reset_curriculum_success)
     )
     for task in args.tasks:
-        if not is_task_file(task) and task not in TASKS:
+        if not is_task_file(task) and task not in FAMILY_TASKS:
             parser.error(
-                f"--tasks: {task!r} is not a family task; accepted: {', '.join(TASKS)}, or a PATH.toml"
+                f"--tasks: {task!r} is not a family task; accepted: {', '.join(FAMILY_TASKS)}, or a PATH.toml"
             )
         try:
             family_task(task)
@@ -257,7 +251,7 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(str(err))
     work, work_tasks = [], []  # each run, and the --tasks entry it belongs to
     for task in args.tasks:
-        target, eval_freq = TASKS[family_task(task)]
+        target, eval_freq = FAMILY_TASKS[family_task(task)]
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
         cfgs = configs(
@@ -286,7 +280,7 @@ def main(argv: list[str] | None = None) -> None:
         variant = family_variant(runs[0][0].to_dict())
         label = family_label(runs[0][0].env_id) + (f" ({', '.join(variant)})" if variant else "")  # as saved
         print("\n".join(["", *group_table(label, run_dirs, train_time=True)]))
-        target = TASKS[family_task(task)][0]
+        target = FAMILY_TASKS[family_task(task)][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
         cells = ", ".join("not reached" if math.isnan(s) else f"{s:,.0f}" for s in steps)
         met = all(not math.isnan(s) and s <= target for s in steps)

@@ -20,6 +20,14 @@ import numpy as np
 from tsrl.agents.config import TASK_FILE_SUFFIX
 
 THRESHOLDS = (0.5, 0.9, 0.95)
+#: The manipulation family (benchmarks/family.py): task -> (target budget [env steps], evaluation
+#: every [env steps]); the target is met when every seed reaches 95 % within its budget.
+FAMILY_TASKS: dict[str, tuple[int, int]] = {
+    "PandaPush-v0": (30_000, 2_500),
+    "PandaPickPlaceGripper-v0": (60_000, 2_500),
+    "PandaStack-v0": (150_000, 10_000),
+    "PandaPegInsert-v0": (150_000, 10_000),
+}
 #: A run folder's files that its table is made of.
 RUN_FILES = ("progress.csv", "config.json")
 PANDA = "tsrl/PandaReach-v0"
@@ -365,7 +373,21 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     extra += [f"{count} demonstrations"] if count.isdigit() and int(count) != 100 else []
     action_l2 = config["agent"].get("action_l2", 0.0)
     extra += [f"action penalty {action_l2:g}"] if action_l2 else []
+    budget, target = int(config["total_timesteps"]), family_target(config["env_id"])
+    extra += [f"budget {budget:,}"] if target is not None and budget != target else []
     return extra
+
+
+def family_target(env_id: str) -> int | None:
+    """The target budget [env steps] of the family task a run's env_id is or varies (FAMILY_TASKS;
+    a task file by its `solver`, read from benchmarks/task_files/), None for any other task."""
+    if env_id.endswith(TASK_FILE_SUFFIX):
+        path = Path(__file__).resolve().parent / "task_files" / Path(env_id).name
+        if not path.is_file():
+            return None
+        env_id = compared_task(env_id)[0]
+    task = FAMILY_TASKS.get(env_id.removeprefix("tsrl/"))
+    return None if task is None else task[0]
 
 
 def compared_task(env_id: str) -> tuple[str, list[str]]:
@@ -385,8 +407,8 @@ def compared_task(env_id: str) -> tuple[str, list[str]]:
 
 
 def table_family(data_dir: Path) -> list[str]:
-    """The manipulation family's summary (benchmarks/family.py): per task, its target budget (the
-    runs' total env steps), the seeds run, each seed's success at the budget, env steps to 50 % and
+    """The manipulation family's summary (benchmarks/family.py): per task, its target budget
+    (FAMILY_TASKS; a run past it names its own budget), the seeds run, each seed's success at the budget, env steps to 50 % and
     to 95 %, seconds of training (evaluations left out) to 95 %, and whether every seed reached 95 %
     within the target."""
     lines = [
@@ -401,7 +423,12 @@ def table_family(data_dir: Path) -> list[str]:
         by_task.setdefault(name, []).append(run_dir)
     for task, run_dirs in by_task.items():
         run_dirs = sorted(run_dirs, key=_seed)
-        target = int(json.loads((run_dirs[0] / "config.json").read_text())["total_timesteps"])
+        env_id = json.loads((run_dirs[0] / "config.json").read_text())["env_id"]
+        target = family_target(env_id)
+        if target is None:
+            raise SystemExit(
+                f"{run_dirs[0]}: env_id {env_id!r} is no family task; accepted: {', '.join(FAMILY_TASKS)}"
+            )
         progress = [read_progress_csv(d) for d in run_dirs]
         final = ", ".join(f"{rows[-1]['eval_success_rate']:.2f}" for rows in progress)
         half = ", ".join(_steps(first_reaching(rows, 0.5)[0]) for rows in progress)

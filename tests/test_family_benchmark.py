@@ -86,3 +86,23 @@ def test_tasks_outside_the_family_are_refused(
         family.main(["--tasks", task])
     assert exit_info.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_run_past_its_target_is_judged_against_the_target_and_names_its_budget(tmp_path: Path) -> None:
+    """The gripper's 150,000-step runs (docs/results/benchmarks/family-gripper-150k): seed 0 reaches 95 %
+    at 132,500, past the task's 60,000, so the table says the target and "no", not the runs' budget."""
+    saved = ROOT / "docs" / "results" / "benchmarks" / "family-gripper-150k"
+    (row,) = learning_tables.table_family(saved)[2:]
+    assert row.startswith("| `tsrl/PandaPickPlaceGripper-v0` (learner fast, budget 150,000) | 60,000 |")
+    assert "| 132,500, never |" in row and row.endswith("| no |")
+    demos = tmp_path / "PandaPush-v0-scripted-100.npz"
+    (at_target,) = family.configs("PandaPush-v0", [0], 30_000, 2_500, demos, "fast")
+    (past,) = family.configs("PandaPush-v0", [0], 45_000, 2_500, demos, "fast")
+    assert learning_tables.family_variant(at_target.to_dict()) == ["learner fast"]
+    assert learning_tables.family_variant(past.to_dict()) == ["learner fast", "budget 45,000"]
+
+
+def test_a_run_of_another_task_has_no_family_target() -> None:
+    assert learning_tables.family_target("tsrl/PandaPickPlace-v0") is None
+    assert learning_tables.family_target("/elsewhere/my_task.toml") is None
+    assert learning_tables.family_target(str(HALF_STEP)) == 30_000
