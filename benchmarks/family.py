@@ -42,6 +42,7 @@ from learning import in_parallel, train_or_resume
 from learning_tables import (
     FAMILY_TASKS,
     THRESHOLDS,
+    every_seed_within,
     family_label,
     family_variant,
     first_reaching,
@@ -283,7 +284,7 @@ def main(argv: list[str] | None = None) -> None:
         target = FAMILY_TASKS[family_task(task)][0]
         steps = [first_reaching(read_progress_csv(d), THRESHOLDS[-1], True)[0] for d in run_dirs]
         cells = ", ".join("not reached" if math.isnan(s) else f"{s:,.0f}" for s in steps)
-        met = all(not math.isnan(s) and s <= target for s in steps)
+        met = every_seed_within(steps, target)
         lines.append(f"| {task} | {target:,} | {cells} | {'yes' if met else 'no'} |")
     print("\n".join(["", *lines]))
 
