@@ -8,6 +8,7 @@ reached 95 % within the task's target budget.
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast   # issue 27's preset as the remedy
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast --action-l2 1   # a penalty on actions
     python benchmarks/family.py --tasks PandaPush-v0 --learner fast --algo tqc      # a stochastic actor
+    python benchmarks/family.py --tasks PandaPush-v0 --learner fast --utd 4         # more gradient steps
     python benchmarks/family.py --tasks PandaStack-v0 --demos-reset-prob 0.5 --demos-reset-curriculum-steps 100000
                                                      # resets to demonstration states, a reverse curriculum
     python benchmarks/family.py --tasks task_files/panda_push_half_step.toml --learner fast
@@ -118,6 +119,7 @@ def configs(
     resets: DemoResets = None,
     action_l2: float = 0.0,
     algo: Algo = "ddpg",
+    utd: float | None = None,
 ) -> list[TrainConfig]:
     """The task's runs: the agent of `learner` (paper: today's default; fast: issue 27's preset, whose
     symmetric sampling is a remedy the issue names) with the demonstrations, the task's own
@@ -125,14 +127,15 @@ def configs(
     episodes started from demonstration states, the other remedy (Nair et al.; a reverse curriculum
     paced by env steps where they are > 0, by success as RFCL's where the rate is > 0), None: the
     learner's; `action_l2` > 0: a penalty on the actor's squared actions (AgentConfig.action_l2);
-    `algo`: the off-policy algorithm under HER (the paper's DDPG; SAC and TQC: a stochastic actor)."""
+    `algo`: the off-policy algorithm under HER (the paper's DDPG; SAC and TQC: a stochastic actor);
+    `utd`: gradient steps per env step (AgentConfig.utd), None: the learner's."""
     from tsrl.envs import load_task
 
     prob, steps, success = resets if resets is not None else (None, 0, 0.0)
     demo_config = DemoConfig(
         path=str(demos), reset_prob=prob, reset_curriculum_steps=steps, reset_curriculum_success=success
     )
-    agent = AgentConfig(algo=algo, learner=learner, demos=demo_config, action_l2=action_l2)
+    agent = AgentConfig(algo=algo, learner=learner, demos=demo_config, action_l2=action_l2, utd=utd)
     return [
         TrainConfig(
             env_id=env_id(task),
@@ -148,10 +151,11 @@ def configs(
     ]
 
 
-def run_parent(task: str, demos: int, resets: DemoResets) -> str:
+def run_parent(task: str, demos: int, resets: DemoResets, utd: float | None = None) -> str:
     """The folder of a task's runs under --out-dir: one per variant, since a run's name does not say
-    its demonstration count or resets (a finished run found there is reused)."""
+    its demonstration count, resets or update-to-data ratio (a finished run found there is reused)."""
     name = task_label(task) + ("" if demos == DEMO_EPISODES else f"-demos-{demos}")
+    name += "" if utd is None else f"-utd-{utd:g}"
     if resets is not None:
         name += f"-resets-{resets[0]:g}" + (f"-curriculum-{resets[1]}" if resets[1] else "")
         name += f"-paced-{resets[2]:g}" if resets[2] else ""
@@ -226,10 +230,18 @@ def main(argv: list[str] | None = None) -> None:
         "by a tenth of the demonstration when the last 20 demonstration-started episodes succeed at "
         "this rate; RFCL's advance on success)",
     )
+    parser.add_argument(
+        "--utd",
+        type=float,
+        default=None,
+        help="gradient steps per env step (default: the learner's: paper 40 per two episodes, fast 2)",
+    )
     add_save_argument(parser, "family")
     args = parser.parse_args(argv)
     if args.demos < 1:
         parser.error(f"--demos must be >= 1; got {args.demos}")
+    if args.utd is not None and not (math.isfinite(args.utd) and args.utd > 0):
+        parser.error(f"--utd must be a finite number > 0 (gradient steps per env step); got {args.utd}")
     for flag in ("demos_reset_curriculum_steps", "demos_reset_curriculum_success"):
         if getattr(args, flag) and args.demos_reset_prob is None:
             parser.error(
@@ -256,9 +268,18 @@ def main(argv: list[str] | None = None) -> None:
         demos = record(task, args.out_dir, args.demos)
         total = args.total_timesteps or target
         cfgs = configs(
-            task, args.seeds, total, eval_freq, demos, args.learner, resets, args.action_l2, args.algo
+            task,
+            args.seeds,
+            total,
+            eval_freq,
+            demos,
+            args.learner,
+            resets,
+            args.action_l2,
+            args.algo,
+            args.utd,
         )
-        parent = args.out_dir / run_parent(task, args.demos, resets)
+        parent = args.out_dir / run_parent(task, args.demos, resets, args.utd)
         work += [(cfg, parent) for cfg in cfgs]
         work_tasks += [task] * len(cfgs)
     print(

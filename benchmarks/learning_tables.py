@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from tsrl.agents.config import TASK_FILE_SUFFIX
+from tsrl.agents.config import LEARNER_PRESETS, TASK_FILE_SUFFIX
 
 THRESHOLDS = (0.5, 0.9, 0.95)
 #: The manipulation family (benchmarks/family.py): task -> (target budget [env steps], evaluation
@@ -357,7 +357,7 @@ def family_label(env_id: str) -> str:
 
 def family_variant(config: dict[str, Any]) -> list[str]:
     """What sets a family run (benchmarks/family.py; its config.json as a dict) apart from the paper's
-    agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["resets 0.5",
+    agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["learner fast", "UTD 4"], ["resets 0.5",
     "reverse curriculum over 100,000"]; [] for that agent. Its run name does not say the resets or the demonstration count."""
     demos = config["agent"]["demos"]
     count = Path(demos["path"] or "").stem.rsplit("-", 1)[-1]
@@ -366,6 +366,8 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     algo = config["agent"]["algo"]
     extra = [algo.upper()] if algo != "ddpg" else []
     extra += [f"learner {learner}"] if learner != "paper" else []
+    utd = config["agent"].get("utd", LEARNER_PRESETS[learner]["utd"])
+    extra += [f"UTD {utd:g}"] if utd != LEARNER_PRESETS[learner]["utd"] else []
     extra += [f"resets {resets}"] if resets else []
     extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
     paced = demos.get("reset_curriculum_success", 0.0)

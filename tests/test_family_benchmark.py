@@ -106,3 +106,25 @@ def test_a_run_of_another_task_has_no_family_target() -> None:
     assert learning_tables.family_target("tsrl/PandaPickPlace-v0") is None
     assert learning_tables.family_target("/elsewhere/my_task.toml") is None
     assert learning_tables.family_target(str(HALF_STEP)) == 30_000
+
+
+def test_utd_reaches_every_run_gets_its_own_folder_and_names_its_variant(tmp_path: Path) -> None:
+    demos = tmp_path / "PandaPickPlaceGripper-v0-scripted-100.npz"
+    more = family.configs("PandaPickPlaceGripper-v0", [0, 1], 60_000, 2_500, demos, "fast", utd=4.0)
+    preset = family.configs("PandaPickPlaceGripper-v0", [0, 1], 60_000, 2_500, demos, "fast")
+    assert [c.agent.utd for c in more] == [4.0, 4.0] and [c.agent.utd for c in preset] == [2.0, 2.0]
+    assert learning_tables.family_variant(more[0].to_dict()) == ["learner fast", "UTD 4"]
+    assert learning_tables.family_variant(preset[0].to_dict()) == ["learner fast"]
+    # the run names are the same, so the variants' runs live in different folders and are never reused
+    assert family.run_parent("PandaPickPlaceGripper-v0", 100, None, 4.0) == "PandaPickPlaceGripper-v0-utd-4"
+    assert family.run_parent("PandaPickPlaceGripper-v0", 100, None) == "PandaPickPlaceGripper-v0"
+
+
+@pytest.mark.parametrize("utd", ["0", "-1", "nan"])
+def test_a_bad_utd_is_refused(utd: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        family.main(["--utd", utd])
+    assert exit_info.value.code == 2
+    assert f"--utd must be a finite number > 0 (gradient steps per env step); got {float(utd)}" in (
+        capsys.readouterr().err
+    )
