@@ -231,7 +231,8 @@ def _label(run: str, parts: list[str]) -> str:
 
 
 #: Columns after the median that data saved before they were measured lacks: (header, the keys a row
-#: needs, the cell), each shown only where every row has its keys.
+#: needs, the cell), each shown only where every row has its keys; the lifted goals' only where some
+#: row had one (a push's goals are never lifted: its column would be all zeros).
 OPTIONAL_COLUMNS: tuple[tuple[str, tuple[str, ...], Callable[[dict[str, Any]], str]], ...] = (
     ("failed, ended stalled", ("failed_stalled",), lambda r: f"{int(r['failed_stalled'])}"),
     ("lost, ended touching the robot", ("lost_touching",), lambda r: f"{int(r['lost_touching'])}"),
@@ -247,8 +248,14 @@ OPTIONAL_COLUMNS: tuple[tuple[str, tuple[str, ...], Callable[[dict[str, Any]], s
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
     """The table (markdown) from `failure_modes`' rows (or their CSV strings); each of OPTIONAL_COLUMNS
-    only where every row has it (data saved before it was measured has not)."""
-    shown = [c for c in OPTIONAL_COLUMNS if all(key in r for r in rows for key in c[1])]
+    only where every row has it (data saved before it was measured has not), the lifted goals' only
+    where some row had a lifted goal."""
+    shown = [
+        c
+        for c in OPTIONAL_COLUMNS
+        if all(key in r for r in rows for key in c[1])
+        and ("lifted_goals" not in c[1] or any(int(r["lifted_goals"]) > 0 for r in rows))
+    ]
     lines = [
         "| run | env steps | "
         + " | ".join(CLASSES)

@@ -154,6 +154,15 @@ def test_render_shows_the_lifted_column_only_where_every_row_has_its_counts() ->
     assert lines[2].endswith("| 0 | 48, 20, 9 | 38% |")
 
 
+def test_render_leaves_out_the_lifted_column_where_no_goal_was_lifted() -> None:
+    """A push's goals lie on the table: its rows' lifted counts are all zero, and the column is noise."""
+    row = {**ROW, "actions_at_bound": 0.375}
+    never = {"lifted_goals": 0, "failed_lifted": 0, "lost_lifted": 0}
+    assert "lifted" not in failure_modes.render([{**row, **never}, {**row, **never}])[0]
+    once = {"lifted_goals": 1, "failed_lifted": 0, "lost_lifted": 0}
+    assert "lifted" in failure_modes.render([{**row, **never}, {**row, **once}])[0]
+
+
 def test_a_gripper_runs_rows_count_its_episodes_and_lifted_goals(tmp_path) -> None:
     """A seconds-long run on the gripper pick-and-place: the classes partition the episodes, and the
     lifted-goal counts match the goals of the same fresh evaluation seeds counted here."""
