@@ -37,7 +37,7 @@ import argparse
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -230,37 +230,56 @@ def _label(run: str, parts: list[str]) -> str:
     return f"{run} ({', '.join(parts)})" if parts else run
 
 
-#: Columns after the median that data saved before they were measured lacks: (header, the keys a row
-#: needs, the cell), each shown only where every row has its keys; the lifted goals' only where some
-#: row had one (a push's goals are never lifted: its column would be all zeros).
-OPTIONAL_COLUMNS: tuple[tuple[str, tuple[str, ...], Callable[[dict[str, Any]], str]], ...] = (
-    ("failed, ended stalled", ("failed_stalled",), lambda r: f"{int(r['failed_stalled'])}"),
-    ("lost, ended touching the robot", ("lost_touching",), lambda r: f"{int(r['lost_touching'])}"),
-    ("lost, held when last at the goal", ("lost_held",), lambda r: f"{int(r['lost_held'])}"),
-    (
+def _always(rows: list[dict[str, Any]]) -> bool:
+    """A column worth showing for any rows."""
+    return True
+
+
+def _some_goal_lifted(rows: list[dict[str, Any]]) -> bool:
+    """Whether some row had a lifted goal (a push's never has: its column would be all zeros)."""
+    return any(int(r["lifted_goals"]) > 0 for r in rows)
+
+
+class OptionalColumn(NamedTuple):
+    """A column after the median that data saved before it was measured lacks."""
+
+    header: str
+    keys: tuple[str, ...]  # the keys a row needs
+    cell: Callable[[dict[str, Any]], str]
+    worth_showing: Callable[[list[dict[str, Any]]], bool] = _always
+
+
+#: Each shown only where every row has its keys and the rows make it worth showing.
+OPTIONAL_COLUMNS: tuple[OptionalColumn, ...] = (
+    OptionalColumn("failed, ended stalled", ("failed_stalled",), lambda r: f"{int(r['failed_stalled'])}"),
+    OptionalColumn(
+        "lost, ended touching the robot", ("lost_touching",), lambda r: f"{int(r['lost_touching'])}"
+    ),
+    OptionalColumn("lost, held when last at the goal", ("lost_held",), lambda r: f"{int(r['lost_held'])}"),
+    OptionalColumn(
         "goal lifted: episodes, failed, reached then lost",
         ("lifted_goals", "failed_lifted", "lost_lifted"),
         lambda r: f"{int(r['lifted_goals'])}, {int(r['failed_lifted'])}, {int(r['lost_lifted'])}",
+        _some_goal_lifted,
     ),
-    ("actions at a bound", ("actions_at_bound",), lambda r: f"{float(r['actions_at_bound']):.0%}"),
+    OptionalColumn(
+        "actions at a bound", ("actions_at_bound",), lambda r: f"{float(r['actions_at_bound']):.0%}"
+    ),
 )
 
 
 def render(rows: list[dict[str, Any]]) -> list[str]:
     """The table (markdown) from `failure_modes`' rows (or their CSV strings); each of OPTIONAL_COLUMNS
-    only where every row has it (data saved before it was measured has not), the lifted goals' only
-    where some row had a lifted goal."""
+    only where every row has it (data saved before it was measured has not) and it is worth showing
+    (the lifted goals' only where some row had a lifted goal)."""
     shown = [
-        c
-        for c in OPTIONAL_COLUMNS
-        if all(key in r for r in rows for key in c[1])
-        and ("lifted_goals" not in c[1] or any(int(r["lifted_goals"]) > 0 for r in rows))
+        c for c in OPTIONAL_COLUMNS if all(key in r for r in rows for key in c.keys) and c.worth_showing(rows)
     ]
     lines = [
         "| run | env steps | "
         + " | ".join(CLASSES)
         + " | median steps to success |"
-        + "".join(f" {header} |" for header, _, _ in shown),
+        + "".join(f" {c.header} |" for c in shown),
         "| --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |" + " ---: |" * len(shown),
     ]
     for r in rows:
@@ -269,7 +288,7 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
         median = float(r["median_steps_to_success"])
         lines.append(
             f"| `{r['run']}` | {int(r['env_steps']):,} | {cells} | {'-' if np.isnan(median) else f'{median:.0f}'} |"
-            + "".join(f" {cell(r)} |" for _, _, cell in shown)
+            + "".join(f" {c.cell(r)} |" for c in shown)
         )
     return lines
 

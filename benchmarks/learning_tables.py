@@ -357,8 +357,9 @@ def family_label(env_id: str) -> str:
 
 def family_variant(config: dict[str, Any]) -> list[str]:
     """What sets a family run (benchmarks/family.py; its config.json as a dict) apart from the paper's
-    agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["learner fast", "UTD 4"], ["resets 0.5",
-    "reverse curriculum over 100,000"]; [] for that agent. Its run name does not say the resets or the demonstration count."""
+    agent (DDPG) with 100 demonstrations, e.g. ["learner fast"], ["TQC", "learner fast"], ["learner fast",
+    "UTD 4"], ["resets 0.5", "reverse curriculum over 100,000"]; [] for that agent. Its run name does not
+    say the resets, the UTD or the demonstration count."""
     demos = config["agent"]["demos"]
     count = Path(demos["path"] or "").stem.rsplit("-", 1)[-1]
     learner = config["agent"].get("learner", "paper")
@@ -366,8 +367,9 @@ def family_variant(config: dict[str, Any]) -> list[str]:
     algo = config["agent"]["algo"]
     extra = [algo.upper()] if algo != "ddpg" else []
     extra += [f"learner {learner}"] if learner != "paper" else []
-    utd = config["agent"].get("utd", LEARNER_PRESETS[learner]["utd"])
-    extra += [f"UTD {utd:g}"] if utd != LEARNER_PRESETS[learner]["utd"] else []
+    preset_utd = LEARNER_PRESETS[learner]["utd"]
+    utd = config["agent"].get("utd", preset_utd)
+    extra += [f"UTD {utd:g}"] if utd != preset_utd else []
     extra += [f"resets {resets}"] if resets else []
     extra += [f"reverse curriculum over {curriculum:,}"] if resets and curriculum else []
     paced = demos.get("reset_curriculum_success", 0.0)
