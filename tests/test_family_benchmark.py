@@ -52,21 +52,32 @@ def test_a_task_file_runs_as_the_family_task_its_solver_names(tmp_path: Path) ->
     assert learning_tables.family_label("tsrl/PandaPush-v0") == "tsrl/PandaPush-v0"
 
 
-GRIPPER_HALF_STEP = ROOT / "benchmarks" / "task_files" / "panda_pick_place_gripper_half_step.toml"
+TASK_FILES = ROOT / "benchmarks" / "task_files"
 
 
-def test_the_gripper_half_step_halves_the_tcp_step_and_its_solver_still_places_the_box() -> None:
+@pytest.mark.parametrize(
+    ("file", "task_id", "budget_steps"),
+    [
+        ("panda_pick_place_gripper_half_step.toml", "PandaPickPlaceGripper-v0", 50),
+        ("panda_peg_insert_half_step.toml", "PandaPegInsert-v0", 75),
+        ("panda_stack_half_step.toml", "PandaStack-v0", 100),
+    ],
+)
+def test_a_gripper_half_step_halves_the_tcp_step_and_its_solver_still_succeeds(
+    file: str, task_id: str, budget_steps: int
+) -> None:
     from tsrl.agents.demonstrators import record_demos
     from tsrl.envs import load_task
 
-    task = str(GRIPPER_HALF_STEP)
-    assert family.family_task(task) == "PandaPickPlaceGripper-v0"
-    half, full = load_task(task), load_task("PandaPickPlaceGripper-v0")
+    task = str(TASK_FILES / file)
+    assert family.family_task(task) == task_id
+    half, full = load_task(task), load_task(task_id)
     assert half.action_spec.parts[0].step == full.action_spec.parts[0].step / 2  # the one change it makes
     assert half.action_spec.gripper and not half.action_spec.gripper_open_close
-    assert half.observation == full.observation and half.goal == full.goal
+    assert half.observation == full.observation and half.goal == full.goal and half.success == full.success
+    assert half.episode_steps == full.episode_steps == budget_steps
     demos = record_demos(task, 10, obs=half.observation, seed=0, keep_failed=True)
-    assert demos.is_success[:, -1].sum() >= 9  # 99 of 100 seeded episodes within the 50 steps
+    assert demos.is_success[:, -1].sum() >= 9  # 100 of 100 seeded episodes within the episode's steps
 
 
 @pytest.mark.parametrize(
