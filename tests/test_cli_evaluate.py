@@ -95,6 +95,7 @@ def test_init_from_an_incompatible_run_is_one_line_and_writes_nothing(run, tmp_p
 EXPERIMENT = """\
 description = "train on UR5e, evaluate on the Panda"
 env = ["tsrl/UR5eReach-v0"]
+obs = ["fs1"]
 seeds = [0, 1]
 total_timesteps = 200
 eval_freq = 100

@@ -290,8 +290,9 @@ class Demos:
     package), the same episodes; both: the two."""
     env: str = "tsrl/UR5ePickPlace-v0"
     """Environment id (ignored with --policy)."""
-    obs: str = "fs1"
-    """Observation preset or spec of the agent that will train on the demonstrations."""
+    obs: str = ""
+    """Observation preset or spec of the agent that will train on the demonstrations (default: the
+    task's own, as `tsrl train` and gym.make use it)."""
     action: str = "task"
     """Action mode: the task's own (task), or a built-in mode its solver acts in (taskspace, ...)."""
     episodes: int = 100

@@ -22,8 +22,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from training_helpers import fill_with_random_episodes, scalar_steps, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents import TrainConfig, make_agent, make_vec_env, resume, train
-from tsrl.agents.config import DemoConfig
+from tsrl.agents import TrainConfig, make_agent, make_env, make_vec_env, resume, train
+from tsrl.agents.config import AgentConfig, DemoConfig
 from tsrl.agents.demo_files import (
     DEMOS_RECORD,
     DemoFileError,
@@ -137,13 +137,14 @@ def test_cli_records_a_demo_file(tmp_path):
 
 @pytest.mark.parametrize("name", list(SOLVERS))
 def test_demos_record_works_for_every_built_in_task_with_a_solver(name, tmp_path, capsys):
-    """`tsrl demos record --env tsrl/<task>` with its defaults (obs fs1, the task's own action): two
+    """`tsrl demos record --env tsrl/<task>` with its defaults (the task's own observation and action,
+    as gym.make builds it): two
     successful episodes of the task's solver whose stored actions, replayed, give the stored
     observations."""
     env_id, out = f"tsrl/{name}", tmp_path / f"{name}.npz"
     assert main(["demos", "record", "--env", env_id, "--episodes", "2", "--out", str(out)]) == 0
     assert capsys.readouterr().out.startswith(f"wrote {out}: 2 episodes")
-    env = gym.make(env_id, obs="fs1")
+    env = gym.make(env_id)
     d = load_demos(out, DemoSpec.of(env))
     assert d.n_episodes == 2 and d.is_success[:, -1].all() and d.meta["demonstrator"] == SOLVERS[name].name
     for i in range(2):
@@ -418,7 +419,7 @@ def _parameters_after_updates(cfg: TrainConfig) -> dict[str, th.Tensor]:
 
 
 def test_no_demonstration_rows_means_todays_agent_bit_for_bit(reach_demos, tmp_path):
-    empty = save_demos(record_demos(REACH, 0, seed=0), tmp_path / "empty.npz")
+    empty = save_demos(record_demos(REACH, 0, obs="fs1", seed=0), tmp_path / "empty.npz")
     today = _parameters_after_updates(tiny())
     variants = [
         DemoConfig(path=str(empty), batch_share=0.25, bc_weight=1.0),  # a file with zero demonstrations
@@ -446,7 +447,7 @@ def test_training_with_demos_is_killed_and_resumes_with_the_demo_buffer_intact(r
     assert run_dir.name.endswith("__s0__demos")
     proc = subprocess.Popen(
         [sys.executable, "-m", "tsrl.cli", "train", "--out-dir", str(tmp_path), "--demos", str(reach_demos),
-         "--total-timesteps", "2000", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
+         "--obs", "fs1", "--total-timesteps", "2000", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
          "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
@@ -483,6 +484,21 @@ def test_a_changed_demo_file_stops_a_restart_from_scratch(reach_demos, tmp_path)
     cfg = tiny(total=100, demos=DemoConfig(path=str(copy)))
     run_dir = train(cfg, tmp_path, progress_bar=False)
     shutil.rmtree(run_dir / "checkpoints")  # as if killed before the first checkpoint
-    save_demos(record_demos(REACH, 1, seed=5), copy)
+    save_demos(record_demos(REACH, 1, obs="fs1", seed=5), copy)
     with pytest.raises(DemoFileError, match="changed since the run started"):
         resume(run_dir, progress_bar=False)
+
+
+@pytest.mark.parametrize("name", ["PandaStack-v0", "UR5eReach-v0"])
+def test_defaults_are_the_tasks_own_so_recorded_demos_fit_a_default_run(name, tmp_path):
+    """`tsrl demos record --env ID` and `tsrl train --env ID` given no --obs/--action both take the task's
+    own observation and action (as gym.make(ID) builds it): the file's layout is the run's."""
+    env_id, out = f"tsrl/{name}", tmp_path / "demos.npz"
+    task = load_task(name)
+    cfg = TrainConfig(env_id=env_id)
+    assert cfg.obs == task.observation
+    assert cfg.action == (task.action if isinstance(task.action, str) else "task")
+    assert main(["demos", "record", "--env", env_id, "--episodes", "1", "--out", str(out)]) == 0
+    with_demos = TrainConfig(env_id=env_id, agent=AgentConfig(demos=DemoConfig(path=str(out))))
+    assert demo_record(with_demos)["episodes"] == 1  # load_demos checks the layout against the run's env
+    assert DemoSpec.of(gym.make(env_id)) == DemoSpec.of(make_env(with_demos))

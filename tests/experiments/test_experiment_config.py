@@ -97,7 +97,7 @@ def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
             ["[demos]", "got 'joint'", "taskspace or taskspace_orient"],
         ),
         (
-            'env = ["tsrl/UR5ePoseReach-v0"]\n[demos]\nepisodes = 5',
+            'env = ["tsrl/UR5ePoseReach-v0"]\naction = ["taskspace"]\n[demos]\nepisodes = 5',
             ["[demos]", "scripted-pose-reach solver", "its task's own action", "got 'taskspace'"],
         ),
     ],

@@ -53,10 +53,19 @@ NATIVE = "native"
 TASK_ACTION = "task"
 #: An `env_id` ending so is a task file (docs/tasks.md), built by tsrl/Task-v0.
 TASK_FILE_SUFFIX = ".toml"
-#: `obs` and `action` of a registered environment where they are not given (left empty; the paper's);
-#: a task file keeps its own (TrainConfig.obs, TrainConfig.action).
-DEFAULT_OBS = "fs1"
-DEFAULT_ACTION = "taskspace"
+
+
+def task_defaults(env_id: str) -> tuple[str, str]:
+    """(obs, action) of a tsrl environment where they are not given: the task's own, as gym.make(env_id)
+    builds it (its file's `observation`, and its `action`: a built-in mode's name or TASK_ACTION for an
+    `[action]` table), for a registered id and a task file alike."""
+    from ..envs import load_task
+    from ..envs.registration import ENV_IDS
+
+    source = env_id.removeprefix("tsrl/") if env_id in ENV_IDS else Path(env_id).expanduser().resolve()
+    task = load_task(source)  # a missing or bad file: one line naming it
+    mode = task.action if isinstance(task.action, str) and task.action in ACTION_MODES else None
+    return task.observation, mode or TASK_ACTION
 
 
 def tsrl_env_ids() -> list[str]:
@@ -328,14 +337,14 @@ class TrainConfig:
         str,
         arg(
             help=f"Observation preset ({', '.join(OBS_PRESETS)}) or a task-map spec string.",
-            help_behavior_hint=f"(default: a task file's own; {DEFAULT_OBS} for a registered environment)",
+            help_behavior_hint="(default: the task's own, as gym.make builds it)",
         ),
     ] = ""
     action: Annotated[
         str,
         arg(
             help=f"Action mode: {', '.join(ACTION_MODES)}, or {TASK_ACTION} (the task file's own action).",
-            help_behavior_hint=f"(default: a task file's own; {DEFAULT_ACTION} for a registered environment)",
+            help_behavior_hint="(default: the task's own, as gym.make builds it)",
         ),
     ] = ""
     seed: int = 0
@@ -365,19 +374,15 @@ class TrainConfig:
             if not isinstance(self.init_from, str) or not self.init_from:
                 raise InvalidConfig(f"init_from must be a run folder; got {self.init_from!r}")
             object.__setattr__(self, "init_from", str(Path(self.init_from).expanduser().resolve()))
-        own: tuple[str, str] = (DEFAULT_OBS, DEFAULT_ACTION)
         if self.is_task_file:
-            from ..envs import load_task
-
-            path = Path(self.env_id).expanduser().resolve()
-            task = load_task(path)  # a missing or bad file: one line naming it
-            object.__setattr__(self, "env_id", str(path))
-            mode = task.action if isinstance(task.action, str) and task.action in ACTION_MODES else None
-            own = (task.observation, mode or TASK_ACTION)
-        if self.is_tsrl_env:  # obs and action not given: the task file's own, else the defaults
-            for name, value in zip(("obs", "action"), own, strict=True):
-                if getattr(self, name) == "":
-                    object.__setattr__(self, name, value)
+            object.__setattr__(self, "env_id", str(Path(self.env_id).expanduser().resolve()))
+        if self.is_tsrl_env:  # obs and action not given: the task's own (task_defaults)
+            if "" in (self.obs, self.action):
+                check_env_id(self.env_id)
+                own = task_defaults(self.env_id)
+                for name, value in zip(("obs", "action"), own, strict=True):
+                    if getattr(self, name) == "":
+                        object.__setattr__(self, name, value)
             if self.obs == NATIVE or self.action == NATIVE:
                 raise InvalidConfig(f"obs/action {NATIVE!r} is only for environments outside tsrl")
             _choice("action", self.action, (*ACTION_MODES, TASK_ACTION))

@@ -56,7 +56,7 @@ def demo_seeds(seed: int, n: int) -> list[int]:
 def record_demos(
     env_id: str,
     episodes: int,
-    obs: str = "fs1",
+    obs: str = "",
     action: str = TASK_ACTION,
     policy: Path | str | None = None,
     seed: int = 0,
@@ -65,7 +65,8 @@ def record_demos(
 ) -> Demonstrations:
     """Records `episodes` demonstration episodes (successful ones only unless `keep_failed`).
 
-    The demonstrator is the run folder `policy`'s policy (its env, obs and action then come from
+    `obs` "" is the task's own observation (tsrl.agents.config.task_defaults). The demonstrator is
+    the run folder `policy`'s policy (its env, obs and action then come from
     its config) or the built-in task's scripted solver (tsrl.envs.solvers.SOLVERS) in `action` (a
     built-in mode, or TASK_ACTION: the task's own). Episodes are attempted with `demo_seeds(seed, ...)`
     until enough are kept or `max_attempts` (default 10 x episodes) have run; the file says how many.

@@ -168,10 +168,11 @@ class ExperimentConfig:
     """One or two sentences: what the experiment compares, for the results' summary."""
     env: tuple[str, ...] = ("tsrl/UR5eReach-v0",)
     """Registered environment ids."""
-    obs: tuple[str, ...] = ("fs1",)
-    """Observation presets (baseline, simple, fs0, fs1, fs2) or task-map spec strings."""
-    action: tuple[str, ...] = ("taskspace",)
-    """Action modes: taskspace, taskspace_orient, joint."""
+    obs: tuple[str, ...] = ("",)
+    """Observation presets (baseline, simple, fs0, fs1, fs2) or task-map spec strings; "" (the default):
+    each task's own, as gym.make builds it."""
+    action: tuple[str, ...] = ("",)
+    """Action modes: taskspace, taskspace_orient, joint, task; "" (the default): each task's own."""
     algo: tuple[Algo, ...] = ("ddpg",)
     """Algorithms, each combined with HER: ddpg, td3, sac."""
     seeds: tuple[int, ...] = (0,)
@@ -284,11 +285,12 @@ class ExperimentConfig:
             return
         if self.agent.demos.path is not None:
             raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
-        from ..agents.config import TASK_ACTION
+        from ..agents.config import TASK_ACTION, task_defaults
         from ..envs.solvers import solver_for
 
         envs = list(dict.fromkeys([*self.env, *(f.env for f in self.finetune)]))
-        for env, action in itertools.product(envs, self.action):
+        for env, given in itertools.product(envs, self.action):
+            action = given or task_defaults(env)[1]  # "": the task's own
             try:
                 solver_for(env, None if action == TASK_ACTION else action)
             except InvalidConfig as err:
