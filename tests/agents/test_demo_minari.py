@@ -37,7 +37,7 @@ DATASET_ID = "tsrl/UR5eReach/reach-v0"  # reach.minari's dataset
 def recorded(tmp_path_factory) -> tuple[Path, Path]:
     """3 scripted reach episodes (fs1) recorded by the CLI as both formats: (reach.npz, reach.minari)."""
     out = tmp_path_factory.mktemp("demos") / "reach.npz"
-    args = ["demos", "record", "--env", REACH, "--episodes", "3", "--out", str(out), "--format", "both"]
+    args = ["demos", "record", "--env", REACH, "--obs", "fs1", "--episodes", "3", "--out", str(out), "--format", "both"]
     assert main(args) == 0
     return out, minari_path(out)
 
@@ -66,7 +66,7 @@ def test_record_as_both_formats_gives_the_same_demonstrations(recorded, capsys):
     assert from_minari.meta == from_npz.meta
     # The default format writes the .npz alone, as before.
     out = npz.with_name("only.npz")
-    assert main(["demos", "record", "--env", REACH, "--episodes", "1", "--out", str(out)]) == 0
+    assert main(["demos", "record", "--env", REACH, "--obs", "fs1", "--episodes", "1", "--out", str(out)]) == 0
     assert out.is_file() and not minari_path(out).exists()
     assert capsys.readouterr().out.count("wrote ") == 1
 
@@ -140,14 +140,14 @@ def test_a_run_records_the_dataset_and_notices_it_changed(recorded, tmp_path):
     record = json.loads((run_dir / "demos.json").read_text())
     assert record == demo_record(cfg) and record["episodes"] == 3 and len(record["sha256"]) == 64
     shutil.rmtree(run_dir / "checkpoints")  # as if killed before the first checkpoint
-    save_demos(record_demos(REACH, 1, seed=5), copy)  # a tsrl dataset is replaced
+    save_demos(record_demos(REACH, 1, obs="fs1", seed=5), copy)  # a tsrl dataset is replaced
     assert load_demos(copy).n_episodes == 1
     with pytest.raises(DemoFileError, match="changed since the run started"):
         resume(run_dir, progress_bar=False)
 
 
 def test_an_empty_dataset_reads_as_the_empty_npz(tmp_path):
-    empty = record_demos(REACH, 0, seed=0)
+    empty = record_demos(REACH, 0, obs="fs1", seed=0)
     from_npz = load_demos(save_demos(empty, tmp_path / "empty.npz"))
     from_minari = load_demos(save_demos(empty, tmp_path / "empty.minari"), reach_spec())
     assert from_minari.n_episodes == 0
@@ -281,5 +281,5 @@ def test_writing_over_a_folder_that_is_not_a_tsrl_dataset_is_refused(tmp_path):
     folder.mkdir()
     (folder / "notes.txt").write_text("keep me")
     with pytest.raises(InvalidConfig, match="exists and is not a tsrl Minari dataset"):
-        save_demos(record_demos(REACH, 1, seed=0), folder)
+        save_demos(record_demos(REACH, 1, obs="fs1", seed=0), folder)
     assert (folder / "notes.txt").read_text() == "keep me" and len(list(tmp_path.iterdir())) == 1

@@ -61,14 +61,15 @@ def test_resume_with_a_larger_budget_continues_counters_buffer_and_normaliser(tm
     copy = shutil.copytree(run_dir, tmp_path / "b" / run_dir.name)
     with open(latest_checkpoint(run_dir) / "vecnormalize.pkl", "rb") as f:
         count_before = pickle.load(f).obs_rms["observation"].count
-    # The copy's progress.csv as a run folder written before eval_penalised_rate was recorded.
+    # The copy's progress.csv as a run folder written before eval_penalised_rate and gradient_steps
+    # were recorded.
     progress = copy / "progress.csv"
     lines = progress.read_text().splitlines()
-    progress.write_text("".join(line.rsplit(",", 1)[0] + "\n" for line in lines))
+    progress.write_text("".join(line.rsplit(",", 2)[0] + "\n" for line in lines))
     assert "eval_penalised_rate" not in progress.read_text()
     resume(run_dir, total_timesteps=300, progress_bar=False)
     resume(copy, total_timesteps=300, progress_bar=False)
-    assert progress.read_text().splitlines()[0].endswith(",eval_penalised_rate")
+    assert progress.read_text().splitlines()[0].endswith(",eval_penalised_rate,gradient_steps")
     assert [r["env_steps"] for r in read_progress(copy)] == [0, 100, 200, 300]
     # Deterministic given the checkpoint (RNG states restored, the new episode seeded from it).
     np.testing.assert_array_equal(buffer_of(run_dir).actions, buffer_of(copy).actions)

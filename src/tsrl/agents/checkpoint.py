@@ -69,7 +69,7 @@ def save_checkpoint(
     """Writes a checkpoint atomically and removes all but the last KEEP_CHECKPOINTS; returns its folder."""
     root = run_dir / CHECKPOINTS
     root.mkdir(parents=True, exist_ok=True)
-    final = checkpoint_path(run_dir, state.env_steps)
+    final = checkpoint_path(run_dir, state.clock)
     if (final / STATE).is_file():  # this very state is already saved (e.g. a stop right after resuming)
         return final
     with replacing(final) as tmp:  # a folder without state.json (a damaged one) is replaced

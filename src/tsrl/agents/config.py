@@ -24,14 +24,16 @@ from ..envs.keys import OBS_KEYS
 from ..envs.observations import OBS_PRESETS
 from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_number
 
-Algo = Literal["ddpg", "td3", "sac", "tqc"]
+Algo = Literal["ddpg", "td3", "sac", "tqc", "bc"]
 Learner = Literal["paper", "fast"]
 LayerNorm = Literal["none", "critic", "both"]
 HerRelabel = Literal["feature", "plain"]
 HerStrategy = Literal["future", "final", "episode"]
 #: The algorithms (stable-baselines3's or sb3-contrib's class of the same name, upper case;
-#: tsrl.agents.factory).
+#: tsrl.agents.factory), and bc: behaviour cloning of the demonstrations (tsrl.agents.bc).
 ALGOS: tuple[str, ...] = typing.get_args(Algo)
+#: The algorithm that clones demonstrations (tsrl.agents.bc).
+BC = "bc"
 LEARNERS: tuple[str, ...] = typing.get_args(Learner)
 LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
@@ -201,7 +203,8 @@ class AgentConfig:
 
     algo: Algo = "ddpg"
     """Off-policy algorithm, always combined with HER (paper: DDPG; tqc: sb3-contrib's TQC, a
-    distributional critic)."""
+    distributional critic); bc: behaviour cloning of --demos (no env step; its budget is bc_steps
+    gradient steps, and eval_freq and checkpoint_freq count gradient steps)."""
     learner: Learner = "paper"
     """Preset of the learner options left unset (layer_norm, utd, demos batch share and reset
     probability): paper (today's agent, the paper's settings) or fast (LayerNorm critic, UTD 2,
@@ -253,6 +256,11 @@ class AgentConfig:
     buffer keeps raw values; normalisation is applied after HER relabelling."""
     clip_obs: float = 5.0
     """Normalised inputs are clipped to +-clip_obs (HER paper: 5)."""
+    bc_steps: int = 8000
+    """algo bc: gradient steps of behaviour cloning (its budget); the other algorithms: gradient steps
+    of cloning that pre-train the actor before the first env step where the learner does (fast)."""
+    bc_dropout: float = 0.1
+    """Dropout after each hidden layer of a behaviour-cloning actor (algo bc), off when it acts."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -291,6 +299,42 @@ class AgentConfig:
             raise InvalidConfig(f"gamma must be in (0, 1]; got {self.gamma}")
         if not 0 < self.tau <= 1:
             raise InvalidConfig(f"tau must be in (0, 1]; got {self.tau}")
+        check_int("bc_steps", self.bc_steps, 0)
+        if not is_number(self.bc_dropout) or not 0 <= self.bc_dropout < 1:
+            raise InvalidConfig(f"bc_dropout must be in [0, 1); got {self.bc_dropout!r}")
+        if self.algo == BC:
+            self._check_bc()
+
+    def _check_bc(self) -> None:
+        """Behaviour cloning needs demonstrations and takes none of the options of learning from
+        env steps: each such option given is refused in one line."""
+        if not self.demos.active:
+            raise InvalidConfig(
+                f"algo {BC} clones demonstrations: give --demos FILE (with demos batch_share and bc_weight "
+                f"> 0); got demos {self.demos.path!r}"
+            )
+        if self.bc_steps < 1:
+            raise InvalidConfig(
+                f"algo {BC}: bc_steps is its budget in gradient steps, >= 1; got {self.bc_steps}"
+            )
+        default = AgentConfig(demos=DemoConfig(path=self.demos.path))
+        rl_only = {
+            "learner": "paper",
+            "her": default.her,
+            "action_noise": default.action_noise,
+            "utd": None,
+            "action_l2": default.action_l2,
+            "demos.reset_prob": None,
+            "demos.batch_share_end": None,
+        }
+        for name, accepted in rl_only.items():
+            owner, _, key = name.rpartition(".")
+            value = getattr(self.demos if owner else self, key)
+            if value != accepted:
+                raise InvalidConfig(
+                    f"algo {BC} learns from the demonstrations alone, without env steps: {name} {value!r} "
+                    f"does not apply; accepted: {accepted!r} (the default)"
+                )
 
     def _resolve_learner(self) -> None:
         """Options left at None get the learner preset's value (LEARNER_PRESETS); resets to

@@ -84,6 +84,7 @@ def record_demos(
         except InvalidConfig as err:
             raise InvalidConfig(f"{err}; pass --policy RUN_DIR to record a trained policy") from None
     run = TrainConfig(env_id=env_id, obs=obs, action=action)  # a registered id or a task file
+    obs = run.obs  # "" resolved: the task's own
     env = gym.make(run.gym_id, **run.env_kwargs)
     base = env.unwrapped
     assert isinstance(base, TaskEnv)  # check_env_id: a tsrl environment

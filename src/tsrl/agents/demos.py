@@ -162,17 +162,25 @@ def attach_demos(
     normaliser see the demonstration states (as OpenAI baselines' DDPG + demonstrations does) and
     attaches the BC loss. For a new model with demonstrations on (`cfg.active`); a resumed one has its
     buffer and statistics already."""
-    assert cfg.active and cfg.path is not None and model.env is not None
-    demos = load_demos(cfg.path, DemoSpec.of(_first_env(model.env)))
+    assert cfg.active and model.env is not None
+    demos = load_run_demos(cfg, model.env, normalizer)
     buffer = model.replay_buffer
     assert isinstance(buffer, DemoReplayBuffer)
     buffer.set_demos(demos)
+    attach_bc_loss(model, cfg)
+    return demos
+
+
+def load_run_demos(cfg: DemoConfig, venv: VecEnv, normalizer: VecNormalize | None) -> Demonstrations:
+    """The run's demonstration file, checked against its env (DemoSpec), with the normaliser's
+    statistics updated by the demonstration states (as OpenAI baselines' DDPG + demonstrations does)."""
+    assert cfg.path is not None
+    demos = load_demos(cfg.path, DemoSpec.of(_first_env(venv)))
     if normalizer is not None and demos.n_episodes:
         for key in OBS_KEYS:
             if key in normalizer.obs_rms:
                 values = getattr(demos, key)
                 normalizer.obs_rms[key].update(values.reshape(-1, values.shape[-1]))
-    attach_bc_loss(model, cfg)
     return demos
 
 

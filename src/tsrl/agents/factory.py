@@ -23,7 +23,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .action_penalty import attach_action_penalty
-from .config import ALGOS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
+from .bc import BCPolicy, BehaviourCloning
+from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
 
@@ -31,7 +32,8 @@ from .learners import policy_for
 ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
     name: getattr(stable_baselines3, name.upper(), None) or getattr(sb3_contrib, name.upper())
     for name in ALGOS
-}
+    if name != BC
+} | {BC: BehaviourCloning}
 
 
 class PolicyInputs(CombinedExtractor):
@@ -142,6 +144,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         "device": "cpu",
         "verbose": 0,
     }
+    if a.algo == BC:
+        return _make_cloner(cfg, env, kwargs)
     policy = policy_for(a.algo, a.layer_norm)  # type: ignore[arg-type]
     if a.layer_norm != "none":
         kwargs["policy_kwargs"]["layer_norm"] = a.layer_norm
@@ -162,4 +166,19 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
         attach_action_penalty(model, a.action_l2)
+    return model
+
+
+def _make_cloner(cfg: TrainConfig, env: VecEnv, kwargs: dict[str, Any]) -> BehaviourCloning:
+    """Behaviour cloning (tsrl.agents.bc) on `env` with make_agent's settings: no replay (a token
+    buffer; the demonstrations are its data), no exploration noise, dropout in the actor."""
+    from .demos import load_run_demos
+
+    kwargs |= {"buffer_size": 1, "replay_buffer_class": None, "replay_buffer_kwargs": {}}
+    kwargs["policy_kwargs"] |= {"bc_dropout": cfg.agent.bc_dropout}
+    model = BehaviourCloning(BCPolicy, env, **kwargs)
+    normalizer = env if isinstance(env, VecNormalize) else None
+    model.set_demos(load_run_demos(cfg.agent.demos, env, normalizer), normalizer)
+    if normalizer is not None:  # the demonstrations' statistics, as cloned: no env step moves them
+        normalizer.training = False
     return model

@@ -12,11 +12,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .config import BC
 from .run_folder import load_config, read_progress
 
 
 def plot_learning_curves(run_dirs: Sequence[Path], out: Path, title: str | None = None) -> Path:
-    """Writes a PNG with one line per run: its evaluation success rate at each evaluation's env steps.
+    """Writes a PNG with one line per run: its evaluation success rate at each evaluation's env steps
+    (a behaviour-cloning run's: gradient steps).
 
     The title defaults to the first run's environment id; runs without evaluations are left out.
     """
@@ -26,6 +28,7 @@ def plot_learning_curves(run_dirs: Sequence[Path], out: Path, title: str | None 
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
+    clocks = set()
     for run_dir in run_dirs:
         rows = read_progress(run_dir)
         if not rows:
@@ -34,11 +37,14 @@ def plot_learning_curves(run_dirs: Sequence[Path], out: Path, title: str | None 
         label = f"{cfg.obs} / {cfg.action} / {cfg.agent.algo}"
         if cfg.agent.her.relabel != "feature":
             label += f" / HER {cfg.agent.her.relabel}"
-        steps = [int(r["env_steps"]) for r in rows]
+        clock = "gradient_steps" if cfg.agent.algo == BC else "env_steps"  # BC takes no env step
+        clocks.add(clock)
+        steps = [int(r[clock]) for r in rows]
         ax.plot(steps, [r["eval_success_rate"] for r in rows], label=f"{label} (seed {cfg.seed})")
     if title is None and run_dirs:
         title = load_config(Path(run_dirs[0])).env_id
-    return save_success_plot(fig, ax, out, xlabel="env steps", title=title)
+    xlabel = " / ".join(sorted(c.replace("_", " ") for c in clocks)) or "env steps"
+    return save_success_plot(fig, ax, out, xlabel=xlabel, title=title)
 
 
 def save_success_plot(

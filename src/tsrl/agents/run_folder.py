@@ -63,6 +63,7 @@ PROGRESS_COLUMNS: tuple[str, ...] = (
     "critic_loss",
     "actor_loss",
     "eval_penalised_rate",
+    "gradient_steps",
 )
 
 
@@ -112,6 +113,15 @@ class RunState:
     next_checkpoint: int
     eval_time_s: float = 0.0
     """Part of wall_time_s spent in evaluations."""
+    bc_gradient_steps: int = 0
+    """A behaviour-cloning run's gradient steps, its clock and budget (its env steps stay 0); 0 for the
+    other runs, whose clock is env_steps."""
+
+    @property
+    def clock(self) -> int:
+        """The run's progress counter: env steps, or a behaviour-cloning run's gradient steps; it names
+        the checkpoint folder (checkpoint_path) and schedules evaluations and checkpoints."""
+        return self.env_steps + self.bc_gradient_steps
 
 
 def load_config(run_dir: Path | str) -> TrainConfig:
@@ -181,9 +191,10 @@ def read_progress(run_dir: Path | str) -> list[dict[str, float]]:
         return [{k: _to_float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def truncate_progress(run_dir: Path, last_step: int) -> int:
-    """Keeps progress.csv's header and its rows at or before `last_step` (the checkpoint's env steps);
-    drops rows after it and a torn last line. Returns the env steps of the last row kept (-1 if none)."""
+def truncate_progress(run_dir: Path, last_step: int, column: str = "env_steps") -> int:
+    """Keeps progress.csv's header and its rows whose `column` (the run's clock: env_steps, or
+    gradient_steps for behaviour cloning) is at or before `last_step` (the checkpoint's); drops rows
+    after it and a torn last line. Returns the clock of the last row kept (-1 if none)."""
     path = run_dir / PROGRESS
     if not path.is_file():
         return -1
@@ -192,13 +203,13 @@ def truncate_progress(run_dir: Path, last_step: int) -> int:
     kept = [
         r
         for r in rows
-        if r.get("env_steps", "").isdigit() and int(r["env_steps"]) <= last_step and None not in r.values()
+        if (r.get(column) or "").isdigit() and int(r[column]) <= last_step and None not in r.values()
     ]
     with replacing(path) as tmp, open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=PROGRESS_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(kept)
-    return int(kept[-1]["env_steps"]) if kept else -1
+    return int(kept[-1][column]) if kept else -1
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
@@ -206,9 +217,9 @@ def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     write_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
-def checkpoint_path(run_dir: Path, env_steps: int) -> Path:
-    """The folder of the checkpoint at `env_steps`."""
-    return run_dir / CHECKPOINTS / f"step_{env_steps:010d}"
+def checkpoint_path(run_dir: Path, clock: int) -> Path:
+    """The folder of the checkpoint at `clock` (RunState.clock: env steps, or BC's gradient steps)."""
+    return run_dir / CHECKPOINTS / f"step_{clock:010d}"
 
 
 def checkpoint_dirs(run_dir: Path | str) -> list[Path]:
@@ -243,10 +254,9 @@ def read_state(checkpoint: Path) -> RunState:
     if any(not is_number(v) or v < 0 for v in data.values()):
         raise DamagedCheckpoint(path, f"counters must be numbers >= 0; got {data}")
     state = RunState(**data)
-    if checkpoint.name != f"step_{state.env_steps:010d}":
-        raise DamagedCheckpoint(
-            path, f"env_steps {state.env_steps} disagrees with the folder {checkpoint.name}"
-        )
+    if checkpoint.name != f"step_{state.clock:010d}":
+        counter = "bc_gradient_steps" if state.bc_gradient_steps else "env_steps"
+        raise DamagedCheckpoint(path, f"{counter} {state.clock} disagrees with the folder {checkpoint.name}")
     return state
 
 

@@ -29,10 +29,11 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from ..exceptions import InvalidConfig
 from ..signals import in_main_thread
 from .action_penalty import attach_action_penalty
+from .bc import BehaviourCloning
 from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
-from .config import TrainConfig
+from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
-from .demos import attach_bc_loss
+from .demos import attach_bc_loss, load_run_demos
 from .evaluation import Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
@@ -152,6 +153,14 @@ class _Session:
             if cfg.init_from is not None:  # the source's networks and normaliser (tsrl.agents.init_from)
                 load_init(cfg, self.run_dir, model, self.normalizer)
             state = RunState(0, 0, 0.0, 0, cfg.checkpoint_freq)
+        elif cfg.agent.algo == BC:
+            model = load_checkpoint(checkpoint, ALGO_CLASSES[BC], self.venv, self.normalizer)
+            assert isinstance(model, BehaviourCloning)
+            if self.normalizer is not None:  # the statistics came back with the checkpoint: kept as saved
+                self.normalizer.training = False
+            model.set_demos(load_run_demos(cfg.agent.demos, self.venv, None), self.normalizer)
+            model._n_updates = checkpoint.state.bc_gradient_steps
+            state = checkpoint.state
         else:
             model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)
             state = checkpoint.state
@@ -170,10 +179,10 @@ class _Session:
                 assert checkpoint.rng is not None  # verified for training
                 curriculum = checkpoint.rng.get(DEMO_RESETS)  # None in a checkpoint from before it was kept
                 self.venv.env_method("continue_from", state.env_steps, state.episodes, curriculum)
-        last_row = truncate_progress(self.run_dir, state.env_steps if checkpoint else -1)
+        last_row = truncate_progress(self.run_dir, state.clock if checkpoint else -1, _clock_column(cfg))
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
         callback = _SafePointCallback(self, state, last_row)
-        remaining = cfg.total_timesteps - model.num_timesteps
+        remaining = _budget(cfg) - _clock(model)
         try:
             with _SignalCatcher(self):
                 if remaining > 0:
@@ -250,9 +259,9 @@ class _SafePointCallback(BaseCallback):
             from tqdm import tqdm
 
             self.pbar = tqdm(
-                total=self.cfg.total_timesteps,
-                initial=self.model.num_timesteps,
-                unit="step",
+                total=_budget(self.cfg),
+                initial=_clock(self._model),
+                unit="gradient step" if self.cfg.agent.algo == BC else "step",
                 dynamic_ncols=True,
                 mininterval=0.5,
                 file=sys.stderr,
@@ -260,6 +269,8 @@ class _SafePointCallback(BaseCallback):
             self._update_postfix()
 
     def _on_rollout_start(self) -> None:
+        if self.pbar is not None and isinstance(self.model, BehaviourCloning):
+            self.pbar.update(_clock(self._model) - self.pbar.n)
         self._safe_point(final=False)
 
     def _on_step(self) -> bool:
@@ -290,7 +301,7 @@ class _SafePointCallback(BaseCallback):
 
     def _safe_point(self, final: bool) -> None:
         model = self._model
-        step = model.num_timesteps
+        step = _clock(model)
         stop = self.session.stop_signal
         if (step >= self.next_eval or final) and step != self.last_eval_step and stop is None:
             self._evaluate(model, step)
@@ -298,18 +309,19 @@ class _SafePointCallback(BaseCallback):
         if step >= self.next_checkpoint or final or stop is not None:
             self.next_checkpoint = (step // self.cfg.checkpoint_freq + 1) * self.cfg.checkpoint_freq
             state = RunState(
-                step,
+                model.num_timesteps,
                 model._episode_num,
                 self.wall_time(),
                 self.next_eval,
                 self.next_checkpoint,
                 self.eval_time,
+                model._n_updates if isinstance(model, BehaviourCloning) else 0,
             )
             save_checkpoint(self.session.run_dir, model, self.session.normalizer, state)
         if stop is not None:
             model.logger.close()
             self.close()
-            raise TrainingInterrupted(stop, self.session.run_dir, step)
+            raise TrainingInterrupted(stop, self.session.run_dir, model.num_timesteps)
 
     def _evaluate(self, model: OffPolicyAlgorithm, step: int) -> None:
         t0 = time.monotonic()
@@ -317,7 +329,8 @@ class _SafePointCallback(BaseCallback):
         self.eval_time += time.monotonic() - t0
         losses = model.logger.name_to_value
         row = {
-            "env_steps": step,
+            "env_steps": model.num_timesteps,
+            "gradient_steps": model._n_updates,
             "episodes": model._episode_num,
             "wall_time_s": f"{self.wall_time():.3f}",
             "eval_time_s": f"{self.eval_time:.3f}",
@@ -339,6 +352,21 @@ class _SafePointCallback(BaseCallback):
         self.last_eval_step = step
         self.last_success = result.success_rate
         self._update_postfix()
+
+
+def _budget(cfg: TrainConfig) -> int:
+    """The run's budget on its clock: env steps, or behaviour cloning's gradient steps."""
+    return cfg.agent.bc_steps if cfg.agent.algo == BC else cfg.total_timesteps
+
+
+def _clock(model: OffPolicyAlgorithm) -> int:
+    """The run's progress on its clock (RunState.clock): env steps, or BC's gradient steps."""
+    return model._n_updates if isinstance(model, BehaviourCloning) else model.num_timesteps
+
+
+def _clock_column(cfg: TrainConfig) -> str:
+    """The progress.csv column of the run's clock."""
+    return "gradient_steps" if cfg.agent.algo == BC else "env_steps"
 
 
 def _train_success(model: OffPolicyAlgorithm) -> float:

@@ -1,0 +1,149 @@
+"""Behaviour cloning (BC): the actor regressed onto the demonstrated actions, with no env step.
+
+`BehaviourCloning` is stable-baselines3's TD3 with its `learn` replaced: every gradient step draws a
+batch of demonstration transitions (observation dict normalised as the run's VecNormalize does it),
+and minimises the mean squared error between the actor's deterministic action (tanh output, in
+[-1, 1]) and the demonstrated one with Adam. Its actor has dropout after each hidden layer (off when
+it acts: SB3's predict and the export put the policy in eval mode). Being an SB3 algorithm with
+TD3's policy, a BC run folder is evaluated, rendered, exported and resumed like any other; its
+clock is gradient steps (`_n_updates`), its env steps stay 0. The critic TD3 builds is never trained.
+
+`clone_step` is the one BC update; the fast learner pre-trains its actor with it (tsrl.agents.demos).
+
+    L_BC = mean over the batch and action dimensions of (pi(s) - a_demo)^2
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import stable_baselines3.td3.policies as td3_policies
+import torch as th
+from stable_baselines3 import TD3
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecNormalize
+from torch import nn
+from torch.nn import functional as F
+
+from ..envs.keys import OBS_KEYS
+from .demo_files import Demonstrations
+
+
+def with_dropout(mlp: nn.Sequential, p: float) -> nn.Sequential:
+    """`mlp` (create_mlp's layers) with nn.Dropout(p) after each hidden activation (every ReLU)."""
+    layers: list[nn.Module] = []
+    for layer in mlp:
+        layers.append(layer)
+        if isinstance(layer, nn.ReLU) and p > 0:
+            layers.append(nn.Dropout(p))
+    return nn.Sequential(*layers)
+
+
+class BCPolicy(td3_policies.MultiInputPolicy):
+    """TD3's MultiInputPolicy whose actor has dropout `bc_dropout` after each hidden layer."""
+
+    bc_dropout: float
+
+    def __init__(self, *args: Any, bc_dropout: float = 0.1, **kwargs: Any):
+        object.__setattr__(self, "bc_dropout", bc_dropout)  # before BasePolicy builds the networks
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor: Any = None) -> Any:
+        actor = super().make_actor(features_extractor)
+        actor.mu = with_dropout(actor.mu, self.bc_dropout)
+        return actor
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        return super()._get_constructor_parameters() | {"bc_dropout": self.bc_dropout}
+
+
+class DemoBatches:
+    """The demonstration transitions as the actor sees them: (n, dim) normalised tensors per key and
+    the (n, k) demonstrated actions; `sample` draws rows uniformly with the numpy global RNG (seeded by
+    SB3's set_random_seed and restored on resume)."""
+
+    def __init__(self, demos: Demonstrations, normalizer: VecNormalize | None):
+        steps = slice(0, demos.episode_steps)  # the states the actions were taken in
+        obs = {
+            key: getattr(demos, key)[:, steps].reshape(-1, getattr(demos, key).shape[-1]) for key in OBS_KEYS
+        }
+        if normalizer is not None:
+            normalised = normalizer.normalize_obs(obs)
+            assert isinstance(normalised, dict)
+            obs = normalised
+        self.obs = {key: th.as_tensor(value, dtype=th.float32) for key, value in obs.items()}
+        self.actions = th.as_tensor(demos.actions.reshape(-1, demos.actions.shape[-1]), dtype=th.float32)
+
+    def __len__(self) -> int:
+        return int(self.actions.shape[0])
+
+    def sample(self, batch_size: int) -> tuple[dict[str, th.Tensor], th.Tensor]:
+        rows = th.as_tensor(np.random.randint(0, len(self), size=batch_size))
+        return {key: value[rows] for key, value in self.obs.items()}, self.actions[rows]
+
+
+def clone_step(
+    actor: nn.Module, optimizer: th.optim.Optimizer, obs: dict[str, th.Tensor], actions: th.Tensor
+) -> float:
+    """One BC gradient step of `actor` (SB3's deterministic actor, training mode) on a batch; the loss."""
+    loss = F.mse_loss(actor(obs), actions)
+    optimizer.zero_grad()
+    loss.backward()
+    optimizer.step()
+    return float(loss.item())
+
+
+def pretrain_actor(model: TD3, batches: DemoBatches, steps: int, batch_size: int) -> None:
+    """`steps` BC gradient steps of the model's actor (its own optimizer), then its target copied from it."""
+    actor = model.actor
+    actor.set_training_mode(True)
+    for _ in range(steps):
+        clone_step(actor, actor.optimizer, *batches.sample(batch_size))
+    model.actor_target.load_state_dict(actor.state_dict())
+
+
+class BehaviourCloning(TD3):
+    """TD3's networks trained by behaviour cloning only (module docstring); `set_demos` before `learn`.
+
+    `learn(n)` runs n more gradient steps (as SB3's learn runs n more env steps), calling the callback's
+    on_rollout_start every `chunk` steps (tsrl.agents.training's safe points: evaluation, checkpoint,
+    a stop on a signal) and its on_training_end at the end.
+    """
+
+    chunk = 100
+    """Gradient steps between two calls of the callback's on_rollout_start."""
+
+    def set_demos(self, demos: Demonstrations, normalizer: VecNormalize | None) -> None:
+        self.batches = DemoBatches(demos, normalizer)
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "batches"]
+
+    def learn(  # type: ignore[override]
+        self,
+        total_timesteps: int,
+        callback: BaseCallback | None = None,
+        log_interval: int = 4,
+        tb_log_name: str = "bc",
+        reset_num_timesteps: bool = False,
+        progress_bar: bool = False,
+    ) -> BehaviourCloning:
+        """`total_timesteps` more gradient steps (a BC run's budget is bc_steps gradient steps)."""
+        end = self._n_updates + total_timesteps
+        _, cb = self._setup_learn(0, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        cb.on_training_start(locals(), globals())
+        actor = self.actor
+        loss = float("nan")
+        while self._n_updates < end:
+            cb.on_rollout_start()
+            actor.set_training_mode(True)  # an evaluation at the safe point put it in eval mode
+            for _ in range(min(self.chunk, end - self._n_updates)):
+                loss = clone_step(actor, actor.optimizer, *self.batches.sample(self.batch_size))
+                self._n_updates += 1
+            self.logger.record("train/bc_loss", loss)
+            self.logger.record("train/actor_loss", loss)
+            self.logger.record("train/n_updates", self._n_updates)
+        actor.set_training_mode(False)
+        cb.on_training_end()
+        return self
