@@ -37,7 +37,20 @@ DATASET_ID = "tsrl/UR5eReach/reach-v0"  # reach.minari's dataset
 def recorded(tmp_path_factory) -> tuple[Path, Path]:
     """3 scripted reach episodes (fs1) recorded by the CLI as both formats: (reach.npz, reach.minari)."""
     out = tmp_path_factory.mktemp("demos") / "reach.npz"
-    args = ["demos", "record", "--env", REACH, "--obs", "fs1", "--episodes", "3", "--out", str(out), "--format", "both"]
+    args = [
+        "demos",
+        "record",
+        "--env",
+        REACH,
+        "--obs",
+        "fs1",
+        "--episodes",
+        "3",
+        "--out",
+        str(out),
+        "--format",
+        "both",
+    ]
     assert main(args) == 0
     return out, minari_path(out)
 
@@ -66,7 +79,9 @@ def test_record_as_both_formats_gives_the_same_demonstrations(recorded, capsys):
     assert from_minari.meta == from_npz.meta
     # The default format writes the .npz alone, as before.
     out = npz.with_name("only.npz")
-    assert main(["demos", "record", "--env", REACH, "--obs", "fs1", "--episodes", "1", "--out", str(out)]) == 0
+    assert (
+        main(["demos", "record", "--env", REACH, "--obs", "fs1", "--episodes", "1", "--out", str(out)]) == 0
+    )
     assert out.is_file() and not minari_path(out).exists()
     assert capsys.readouterr().out.count("wrote ") == 1
 
