@@ -18,6 +18,20 @@ from .config import Key
 FINAL_EVALS = 3
 
 
+def sustained_crossing(clock: list[float], success: list[float], level: float, window: int = FINAL_EVALS) -> float:
+    """The clock (env steps) of the first evaluation from which the mean of `window` consecutive
+    evaluations stays at or above `level`: the windows starting there and at every later evaluation
+    (as far as the run goes) all have it; NaN if there is none. One noisy evaluation at the level
+    does not count, nor a run that reaches it and falls back."""
+    means = [float(np.mean(success[i : i + window])) for i in range(len(success) - window + 1)]
+    first = math.nan
+    for i in reversed(range(len(means))):
+        if means[i] < level:
+            break
+        first = float(clock[i])
+    return first
+
+
 def row_key(row: dict[str, Any]) -> Key:
     """The configuration (env, obs, action, algo, variant) of a tidy result row."""
     return (row["env"], row["obs"], row["action"], row["algo"], row["variant"])

@@ -1,0 +1,200 @@
+"""The learner-from-demonstrations study (README.md beside this file): trains one arm on one task for
+the given seeds, evaluates each final policy on 100 fresh episodes, and writes a row per run to
+data/runs.csv; `table` prints the study's table from that file.
+
+    python studies/learner-from-demos/run.py train ARM TASK --seeds 0 1 2 3 4 [--out DIR]
+    python studies/learner-from-demos/run.py table
+
+Arms (ARMS): bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
+seed 0), 8,000 gradient steps; fast100 / fast10: `--learner fast` with the same demonstrations.
+Every evaluation has 100 episodes on the run's fixed unseen seeds. Per run: final = mean of the last
+three evaluations; fresh = success of the final policy on 100 fresh seeds; to95 = the env steps from
+which the mean of three consecutive evaluations stays at or above 0.95 (curves.sustained_crossing);
+min_after = the lowest evaluation after the first 2,500 env steps (the floor target).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents import TrainConfig, resume, train
+from tsrl.agents.checkpoint import load_policy, usable_checkpoint
+from tsrl.agents.config import AgentConfig, DemoConfig
+from tsrl.agents.demo_files import save_demos
+from tsrl.agents.demonstrators import record_demos
+from tsrl.agents.evaluation import Evaluator, fresh_eval_seeds
+from tsrl.agents.factory import ALGO_CLASSES
+from tsrl.agents.run_folder import CONFIG_FILE, read_progress
+from tsrl.experiments.curves import sustained_crossing
+
+HERE = Path(__file__).resolve().parent
+RUNS_CSV = HERE / "data" / "runs.csv"
+COLUMNS = (
+    "task",
+    "arm",
+    "seed",
+    "budget",
+    "evals",
+    "final",
+    "fresh",
+    "to95",
+    "min_after",
+    "wall_s",
+    "commit",
+)
+EVAL_EPISODES = 100
+#: Env-step budgets of the learner arms per task (the issue's targets' budgets).
+BUDGETS = {
+    "PandaPickPlaceGripper-v0": 10_000,
+    "PandaPush-v0": 30_000,
+    "PandaStack-v0": 150_000,
+    "PandaPegInsert-v0": 150_000,
+    "UR5ePickPlace-v0": 12_500,
+}
+EVAL_FREQ = {"PandaPickPlaceGripper-v0": 1_250, "UR5ePickPlace-v0": 1_250}  # others: 2,500
+
+
+def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
+    demo_cfg = DemoConfig(path=str(demos))
+    if arm.startswith("bc"):
+        agent = AgentConfig(algo="bc", bc_steps=8_000, demos=demo_cfg)
+        return TrainConfig(
+            env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
+            checkpoint_freq=4_000, agent=agent,
+        )  # fmt: skip
+    if arm.startswith("fast"):
+        agent = AgentConfig(learner="fast", demos=demo_cfg)
+        return TrainConfig(
+            env_id=f"tsrl/{task}", seed=seed, total_timesteps=BUDGETS[task], eval_freq=EVAL_FREQ.get(task, 2_500),
+            eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
+        )  # fmt: skip
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, fast100, fast10")
+
+
+def demo_file(out: Path, task: str, n: int) -> Path:
+    path = out / "demos" / f"{task}-{n}.npz"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_demos(record_demos(f"tsrl/{task}", n, seed=0), path)
+    return path
+
+
+def fresh_success(run_dir: Path, cfg: TrainConfig) -> float:
+    checkpoint = usable_checkpoint(run_dir, cfg.agent.normalize, for_training=False)
+    assert checkpoint is not None
+    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    evaluator = Evaluator(cfg, fresh_eval_seeds(cfg.seed, EVAL_EPISODES))
+    try:
+        return evaluator.evaluate(model, normalizer).success_rate
+    finally:
+        evaluator.close()
+
+
+def metrics(run_dir: Path, cfg: TrainConfig) -> dict[str, Any]:
+    rows = read_progress(run_dir)
+    bc = cfg.agent.algo == "bc"
+    clock = [r["gradient_steps" if bc else "env_steps"] for r in rows]
+    success = [r["eval_success_rate"] for r in rows]
+    after = [s for c, s in zip(clock, success, strict=True) if bc or c >= 2_500]
+    return {
+        "budget": int(clock[-1]),
+        "evals": len(rows),
+        "final": round(float(np.mean(success[-3:])), 4),
+        "fresh": fresh_success(run_dir, cfg),
+        "to95": "" if bc else sustained_crossing(clock, success, 0.95),
+        "min_after": round(min(after), 4) if after else math.nan,
+        "wall_s": round(rows[-1]["wall_time_s"], 1),
+    }
+
+
+def commit() -> str:
+    return subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True, cwd=HERE
+    ).stdout.strip()
+
+
+def train_arm(arm: str, task: str, seeds: list[int], out: Path) -> None:
+    n = int(arm.removeprefix("bc").removeprefix("fast"))
+    demos = demo_file(out, task, n)
+    done = {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
+    for seed in seeds:
+        if (task, arm, str(seed)) in done:
+            continue
+        cfg = arm_config(arm, task, seed, demos)
+        parent = out / arm / task
+        run_dir = parent / cfg.run_name
+        if (run_dir / CONFIG_FILE).is_file():
+            resume(run_dir, progress_bar=False)  # a killed run goes on from its checkpoint
+        else:
+            run_dir = train(cfg, parent, progress_bar=False)
+        row = {"task": task, "arm": arm, "seed": seed, **metrics(run_dir, cfg), "commit": commit()}
+        append_row(row)
+        print(row, flush=True)
+
+
+def read_rows() -> list[dict[str, str]]:
+    if not RUNS_CSV.is_file():
+        return []
+    with open(RUNS_CSV, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def append_row(row: dict[str, Any]) -> None:
+    new = not RUNS_CSV.is_file()
+    with open(RUNS_CSV, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        if new:
+            writer.writeheader()
+        writer.writerow(row)
+
+
+def _per(rs: list[dict[str, str]], key: str) -> str:
+    return ", ".join(f"{float(r[key]):.2f}" if r[key] not in ("", "nan") else "-" for r in rs)
+
+
+def table() -> None:
+    rows = read_rows()
+    groups: dict[tuple[str, str], list[dict[str, str]]] = {}
+    for r in rows:
+        groups.setdefault((r["task"], r["arm"]), []).append(r)
+    print(
+        "| task | arm | seeds | budget | final (mean of last 3), per seed | fresh 100, per seed | "
+        "to 95 % (sustained), per seed | lowest eval after 2,500 |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for (task, arm), rs in sorted(groups.items()):
+        rs.sort(key=lambda r: int(r["seed"]))
+        to95 = ", ".join(f"{float(r['to95']):,.0f}" if r["to95"] not in ("", "nan") else "-" for r in rs)
+        print(
+            f"| {task} | {arm} | {len(rs)} | {rs[0]['budget']} | {_per(rs, 'final')} | {_per(rs, 'fresh')} | {to95} | "
+            f"{min(float(r['min_after']) for r in rs):.2f} |"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    t = sub.add_parser("train")
+    t.add_argument("arm")
+    t.add_argument("task", choices=sorted(BUDGETS))
+    t.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    t.add_argument("--out", type=Path, default=Path("results/learner-from-demos"))
+    sub.add_parser("table")
+    args = parser.parse_args()
+    if args.command == "train":
+        train_arm(args.arm, args.task, args.seeds, args.out)
+    else:
+        table()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
