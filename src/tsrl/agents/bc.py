@@ -15,6 +15,8 @@ clock is gradient steps (`_n_updates`), its env steps stay 0. The critic TD3 bui
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -22,11 +24,13 @@ import stable_baselines3.td3.policies as td3_policies
 import torch as th
 from stable_baselines3 import TD3
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 from torch import nn
 from torch.nn import functional as F
 
 from ..envs.keys import OBS_KEYS
+from .action_penalty import actor_action
 from .demo_files import Demonstrations
 
 
@@ -84,23 +88,31 @@ class DemoBatches:
 
 
 def clone_step(
-    actor: nn.Module, optimizer: th.optim.Optimizer, obs: dict[str, th.Tensor], actions: th.Tensor
+    act: Callable[[dict[str, th.Tensor]], th.Tensor],
+    optimizer: th.optim.Optimizer,
+    obs: dict[str, th.Tensor],
+    actions: th.Tensor,
 ) -> float:
-    """One BC gradient step of `actor` (SB3's deterministic actor, training mode) on a batch; the loss."""
-    loss = F.mse_loss(actor(obs), actions)
+    """One BC gradient step: `act` maps a batch of normalised observations to (n, k) deterministic
+    actions (an SB3 actor in training mode); `optimizer` steps its parameters. Returns the loss."""
+    loss = F.mse_loss(act(obs), actions)
     optimizer.zero_grad()
     loss.backward()
     optimizer.step()
     return float(loss.item())
 
 
-def pretrain_actor(model: TD3, batches: DemoBatches, steps: int, batch_size: int) -> None:
-    """`steps` BC gradient steps of the model's actor (its own optimizer), then its target copied from it."""
-    actor = model.actor
+def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
+    """`steps` BC gradient steps of the model's actor (its deterministic action, its own optimizer),
+    before any env step; a target actor (DDPG, TD3) is then copied from it."""
+    actor: Any = model.actor  # type: ignore[attr-defined]
     actor.set_training_mode(True)
     for _ in range(steps):
-        clone_step(actor, actor.optimizer, *batches.sample(batch_size))
-    model.actor_target.load_state_dict(actor.state_dict())
+        clone_step(partial(actor_action, model), actor.optimizer, *batches.sample(batch_size))
+    actor.set_training_mode(False)
+    target = getattr(model, "actor_target", None)
+    if target is not None:
+        target.load_state_dict(actor.state_dict())
 
 
 class BehaviourCloning(TD3):

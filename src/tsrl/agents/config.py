@@ -37,14 +37,23 @@ BC = "bc"
 LEARNERS: tuple[str, ...] = typing.get_args(Learner)
 LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
-#: agent (the paper's settings); fast: the combination `benchmarks/learning.py learner-ablation` chose
-#: on pick-and-place (5 seeds per variant, docs/training.md): LayerNorm critic, UTD 2 and batch share
-#: 0.5 kept; demonstration resets left out (removing them raised the AUC, the interval above 0).
-#: demos_reset_prob applies only where demonstrations are on.
+#: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
+#: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
+#: step, twin critics (TD3) with LayerNorm, UTD 2, half of each batch from the demonstrations, gamma
+#: 0.98, no random steps, and TD3+BC's anchored actor loss after a warm-up in which it only clones.
+#: demos_reset_prob applies only where demonstrations are on; bc_pretrain is not an option.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
-    "paper": {"layer_norm": "none", "utd": None, "demos_batch_share": 0.125, "demos_reset_prob": 0.0},
-    "fast": {"layer_norm": "critic", "utd": 2.0, "demos_batch_share": 0.5, "demos_reset_prob": None},
-}
+    "paper": {
+        "algo": "ddpg", "layer_norm": "none", "utd": None, "learning_starts": 500, "gamma": 0.95,
+        "action_noise": 0.2, "demos_batch_share": 0.125, "demos_reset_prob": 0.0, "demos_bc_anchor": None,
+        "demos_bc_anchor_warmup": 0, "bc_pretrain": False,
+    },
+    "fast": {
+        "algo": "td3", "layer_norm": "critic", "utd": 2.0, "learning_starts": 0, "gamma": 0.98,
+        "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 0.25,
+        "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True,
+    },
+}  # fmt: skip
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
 HER_STRATEGIES: tuple[str, ...] = typing.get_args(HerStrategy)
 #: Keys of a goal environment's observation dict that the networks may see (AgentConfig.policy_inputs).
@@ -149,6 +158,17 @@ class DemoConfig:
     demonstrations at once) instead of by env steps: the window of restored steps starts at the
     demonstration's last step and widens by a tenth of the demonstration whenever the last 20 episodes
     started from a demonstration state since it last widened succeeded at a rate >= s."""
+    bc_anchor: Annotated[float | None, arg(name="demos-bc-anchor")] = None
+    """alpha > 0: the actor loss is alpha * (-Q) / mean|Q(s, pi(s))| of the batch plus bc_weight x BC on
+    every demonstration row, unfiltered (TD3+BC's anchor, Fujimoto & Gu 2021: the BC weight means the
+    same at any scale of Q); None: Nair et al.'s -Q + bc_weight x Q-filtered BC. Default: the learner's
+    (paper: None; fast: 0.25, a tenth of TD3+BC's offline 2.5: with 2.5 the cloned pick-and-place actor
+    fell from 1.00 to 0.68 once the Q term was on, with 0.25 it held 0.98-1.00; one-seed probes,
+    studies/learner-from-demos)."""
+    bc_anchor_warmup: Annotated[int | None, arg(name="demos-bc-anchor-warmup")] = None
+    """With bc_anchor: env steps during which the actor's Q term is off (the actor keeps cloning while
+    the critic learns the values of what it does), then as many over which it ramps linearly to full.
+    Default: the learner's (paper: 0; fast: 2,500)."""
     bc_weight: Annotated[float, arg(name="demos-bc-weight")] = 1.0
     """Weight of the behaviour-cloning loss (squared action error, mean over the demonstration rows)
     next to the actor's -mean Q; 0: demonstrations off (no demonstration rows, no BC loss: the agent
@@ -169,6 +189,12 @@ class DemoConfig:
             if not 0 <= share < 1:
                 raise InvalidConfig(f"demos {name} must be in [0, 1); got {share}")
         check_positive("demos bc_weight", self.bc_weight, strict=False)
+        if self.bc_anchor is not None and (
+            not is_number(self.bc_anchor) or not 0 < self.bc_anchor < math.inf
+        ):
+            raise InvalidConfig(f"demos bc_anchor must be a number > 0 or None; got {self.bc_anchor!r}")
+        if self.bc_anchor_warmup is not None:
+            check_int("demos bc_anchor_warmup", self.bc_anchor_warmup, 0)
         check_int("demos batch_share_steps", self.batch_share_steps, 0)
         if (self.batch_share_end is None) != (self.batch_share_steps == 0):
             raise InvalidConfig(
@@ -201,9 +227,11 @@ class DemoConfig:
 class AgentConfig:
     """Off-policy algorithm + HER; defaults are the paper's settings where it gives them."""
 
-    algo: Algo = "ddpg"
-    """Off-policy algorithm, always combined with HER (paper: DDPG; tqc: sb3-contrib's TQC, a
-    distributional critic); bc: behaviour cloning of --demos (no env step; its budget is bc_steps
+    # The defaults None of algo, learning_starts, gamma and action_noise stand for "the learner's":
+    # __post_init__ replaces them (LEARNER_PRESETS), so a built config always holds the annotated type.
+    algo: Algo = None  # type: ignore[assignment]
+    """Off-policy algorithm, always combined with HER (default: the learner's; paper: DDPG, fast: TD3;
+    tqc: sb3-contrib's TQC, a distributional critic); bc: behaviour cloning of --demos (no env step; its budget is bc_steps
     gradient steps, and eval_freq and checkpoint_freq count gradient steps)."""
     learner: Learner = "paper"
     """Preset of the learner options left unset (layer_norm, utd, demos batch share and reset
@@ -235,17 +263,20 @@ class AgentConfig:
     buffer_size: int = 1_000_000
     """Replay buffer capacity in transitions (HER paper: 10^6). The buffer is allocated for
     min(buffer_size, total_timesteps + one update period): a run never needs more."""
-    learning_starts: int = 500
-    """Env steps of uniformly random actions before the first update (10 episodes): fills the
-    buffer with varied goals for HER; rl-baselines3-zoo's FetchReach uses 1000."""
-    gamma: float = 0.95
-    """Discount factor (rl-baselines3-zoo FetchReach: 0.95; the HER paper uses 1 - 1/T = 0.98)."""
+    learning_starts: int = None  # type: ignore[assignment]
+    """Env steps of uniformly random actions before the first update. Default: the learner's (paper:
+    500, 10 episodes that fill the buffer with varied goals for HER, rl-baselines3-zoo's FetchReach
+    uses 1000; fast: 0, it acts with its cloned actor from the first step)."""
+    gamma: float = None  # type: ignore[assignment]
+    """Discount factor. Default: the learner's (paper: 0.95, rl-baselines3-zoo FetchReach; fast: 0.98,
+    the HER paper's 1 - 1/T, for episodes whose demonstrations succeed after 40-64 steps)."""
     tau: float = 0.05
     """Polyak coefficient of the target networks (HER paper: 1 - 0.95 = 0.05; SB3's default 0.005 is
     tuned for dense-reward locomotion and learns reach far slower)."""
-    action_noise: float = 0.2
-    """Standard deviation of the Gaussian exploration noise on the [-1, 1] action, DDPG and TD3 only
-    (HER paper and rl-baselines3-zoo: 0.2). SAC explores through its entropy term instead."""
+    action_noise: float = None  # type: ignore[assignment]
+    """Standard deviation of the Gaussian exploration noise on the [-1, 1] action, DDPG and TD3 only.
+    Default: the learner's (paper: 0.2, HER paper and rl-baselines3-zoo; fast: 0.1, TD3's, around a
+    cloned actor). SAC explores through its entropy term instead."""
     action_l2: float = 0.0
     """Weight of a penalty on the actor's squared actions (mean over the batch and the [-1, 1] action's
     dimensions) added to the actor loss: OpenAI baselines' HER `action_l2` (1.0 on Fetch;
@@ -267,9 +298,9 @@ class AgentConfig:
     """Demonstrations (off by default)."""
 
     def __post_init__(self) -> None:
-        _choice("algo", self.algo, ALGOS)
         _choice("learner", self.learner, LEARNERS)
         self._resolve_learner()
+        _choice("algo", self.algo, ALGOS)
         _choice("layer_norm", self.layer_norm, LAYER_NORMS)
         if self.utd is not None and (not is_number(self.utd) or not self.utd > 0):
             raise InvalidConfig(
@@ -340,12 +371,16 @@ class AgentConfig:
         """Options left at None get the learner preset's value (LEARNER_PRESETS); resets to
         demonstration states without demonstrations are refused here, before the reset probability is."""
         preset = LEARNER_PRESETS[self.learner]
-        for name in ("layer_norm", "utd"):
+        for name in ("algo", "layer_norm", "utd", "learning_starts", "gamma", "action_noise"):
             if getattr(self, name) is None:
                 object.__setattr__(self, name, preset[name])
         demos = self.demos
         if demos.batch_share is None:
             demos = dataclasses.replace(demos, batch_share=preset["demos_batch_share"])
+        if demos.bc_anchor is None and preset["demos_bc_anchor"] is not None:
+            demos = dataclasses.replace(demos, bc_anchor=preset["demos_bc_anchor"])
+        if demos.bc_anchor_warmup is None:
+            demos = dataclasses.replace(demos, bc_anchor_warmup=preset["demos_bc_anchor_warmup"])
         if not demos.active and (
             demos.reset_prob or demos.reset_curriculum_steps or demos.reset_curriculum_success
         ):

@@ -200,14 +200,26 @@ def q_filtered_bc_loss(
 class BCLoss:
     """Step pre-hook of the actor optimizer: back-propagates weight * L_BC on the last demo rows.
 
+    With an `anchor` alpha (TD3+BC's form), the actor's -Q gradient already accumulated is first
+    scaled by ramp * alpha / mean|Q(s, pi(s))| over the whole last batch, and L_BC is unfiltered;
+    ramp is 0 for the first `warmup` env steps, then rises linearly to 1 over as many.
     Records train/bc_loss and train/q_filter_pass (share of demonstration rows cloned) in the model's
     logger (the latest gradient step's values).
     """
 
-    def __init__(self, model: OffPolicyAlgorithm, weight: float, q_filter: bool):
+    def __init__(
+        self,
+        model: OffPolicyAlgorithm,
+        weight: float,
+        q_filter: bool,
+        anchor: float | None = None,
+        warmup: int = 0,
+    ):
         self.model = model
         self.weight = weight
-        self.q_filter = q_filter
+        self.q_filter = q_filter and anchor is None
+        self.anchor = anchor
+        self.warmup = warmup
 
     def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
         buffer = self.model.replay_buffer
@@ -215,6 +227,9 @@ class BCLoss:
         if demo is None:
             return
         critic = self.model.critic  # type: ignore[attr-defined]
+        if self.anchor is not None:
+            assert isinstance(buffer, DemoReplayBuffer) and buffer.last_batch is not None
+            self._scale_q_gradient(critic, buffer.last_batch.observations)
         with th.enable_grad():
             pi = actor_action(self.model, demo.observations)
             with th.no_grad():
@@ -224,6 +239,20 @@ class BCLoss:
             (self.weight * loss).backward()
         self.model.logger.record("train/bc_loss", loss.item())
         self.model.logger.record("train/q_filter_pass", mask.float().mean().item())
+
+    def _scale_q_gradient(self, critic: th.nn.Module, obs: dict[str, th.Tensor]) -> None:
+        """Multiplies the actor's gradients (SB3's -mean Q, just back-propagated) by
+        anchor / mean|Q(s, pi(s))| over the batch; records it as train/q_scale."""
+        assert self.anchor is not None
+        with th.no_grad():
+            q = first_q(critic, obs, actor_action(self.model, obs))
+            ramp = 1.0 if self.warmup == 0 else min(1.0, max(0.0, self.model.num_timesteps / self.warmup - 1))
+            scale = ramp * self.anchor / q.abs().mean().clamp_min(1e-6)
+        for group in actor_optimizer(self.model).param_groups:
+            for param in group["params"]:
+                if param.grad is not None:
+                    param.grad.mul_(scale)
+        self.model.logger.record("train/q_scale", float(scale))
 
 
 def first_q(critic: th.nn.Module, obs: dict[str, th.Tensor], actions: th.Tensor) -> th.Tensor:
@@ -239,4 +268,6 @@ def attach_bc_loss(model: OffPolicyAlgorithm, cfg: DemoConfig) -> RemovableHandl
     """Registers BCLoss on the actor's optimizer (after creating or loading a model with
     demonstrations on, `cfg.active`)."""
     assert cfg.active
-    return actor_optimizer(model).register_step_pre_hook(BCLoss(model, cfg.bc_weight, cfg.q_filter))
+    return actor_optimizer(model).register_step_pre_hook(
+        BCLoss(model, cfg.bc_weight, cfg.q_filter, cfg.bc_anchor, cfg.bc_anchor_warmup or 0)
+    )

@@ -23,8 +23,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .action_penalty import attach_action_penalty
-from .bc import BCPolicy, BehaviourCloning
-from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
+from .bc import BCPolicy, BehaviourCloning, DemoBatches, pretrain_actor
+from .config import ALGOS, BC, LEARNER_PRESETS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
 
@@ -161,7 +161,10 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
             "demo_share_steps": a.demos.batch_share_steps,
         }
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
-        attach_demos(model, a.demos, env if isinstance(env, VecNormalize) else None)
+        normalizer = env if isinstance(env, VecNormalize) else None
+        demos = attach_demos(model, a.demos, normalizer)
+        if LEARNER_PRESETS[a.learner]["bc_pretrain"] and a.bc_steps > 0:  # the actor starts as BC's
+            pretrain_actor(model, DemoBatches(demos, normalizer), a.bc_steps, a.batch_size)
     else:
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)

@@ -12,7 +12,7 @@ import itertools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from ..agents.config import AgentConfig, Algo, TrainConfig
 from ..agents.transfer import EvalTask, Perturbation
@@ -173,8 +173,9 @@ class ExperimentConfig:
     each task's own, as gym.make builds it."""
     action: tuple[str, ...] = ("",)
     """Action modes: taskspace, taskspace_orient, joint, task; "" (the default): each task's own."""
-    algo: tuple[Algo, ...] = ("ddpg",)
-    """Algorithms, each combined with HER: ddpg, td3, sac."""
+    algo: tuple[Algo | Literal[""], ...] = ("",)
+    """Algorithms: ddpg, td3, sac, tqc (each combined with HER) or bc; "" (the default): the [agent]
+    learner's (paper: ddpg, fast: td3)."""
     seeds: tuple[int, ...] = (0,)
     """Seeds of the runs (integers >= 0), e.g. [0, 1, 2, 3, 4]."""
     total_timesteps: int = 20_000
@@ -319,7 +320,9 @@ class ExperimentConfig:
         ]
         return grid + tuned
 
-    def _run(self, env: str, obs: str, action: str, algo: Algo, seed: int, folder: Path) -> TrainConfig:
+    def _run(
+        self, env: str, obs: str, action: str, algo: Algo | Literal[""], seed: int, folder: Path
+    ) -> TrainConfig:
         cfg = TrainConfig(
             env_id=env,
             obs=obs,
@@ -329,7 +332,7 @@ class ExperimentConfig:
             eval_freq=self.eval_freq,
             eval_episodes=self.eval_episodes,
             checkpoint_freq=self.checkpoint_freq,
-            agent=dataclasses.replace(self.agent, algo=algo),
+            agent=dataclasses.replace(self.agent, algo=algo or self.agent.algo),
         )
         if self.demos is None:
             return cfg

@@ -18,7 +18,9 @@ from .config import Key
 FINAL_EVALS = 3
 
 
-def sustained_crossing(clock: list[float], success: list[float], level: float, window: int = FINAL_EVALS) -> float:
+def sustained_crossing(
+    clock: list[float], success: list[float], level: float, window: int = FINAL_EVALS
+) -> float:
     """The clock (env steps) of the first evaluation from which the mean of `window` consecutive
     evaluations stays at or above `level`: the windows starting there and at every later evaluation
     (as far as the run goes) all have it; NaN if there is none. One noisy evaluation at the level

@@ -1,0 +1,97 @@
+"""The fast learner's parts (issue 55): its actor starts as behaviour cloning of the demonstrations;
+its actor loss scales the -Q gradient by alpha / mean|Q(s, pi(s))| (TD3+BC's anchor) after a warm-up
+in which the actor only clones; the preset resolves to twin critics, gamma 0.98, no random steps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+from stable_baselines3.common.logger import configure
+from training_helpers import fill_with_random_episodes
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
+from tsrl.agents.action_penalty import actor_action
+from tsrl.agents.bc import DemoBatches
+from tsrl.agents.config import DemoConfig
+from tsrl.agents.demo_files import load_demos, save_demos
+from tsrl.agents.demonstrators import record_demos
+from tsrl.agents.demos import BCLoss, DemoReplayBuffer, first_q
+
+REACH = "tsrl/UR5eReach-v0"
+
+
+@pytest.fixture(scope="module")
+def reach_demos(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("demos") / "reach.npz"
+    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+
+
+def fast(path: Path, **agent: object) -> TrainConfig:
+    demos = DemoConfig(path=str(path))
+    return TrainConfig(
+        env_id=REACH, obs="fs1", agent=AgentConfig(learner="fast", batch_size=64, demos=demos, **agent)
+    )
+
+
+def test_the_fast_preset_resolves_and_given_options_win(reach_demos):
+    a = fast(reach_demos).agent
+    assert (a.algo, a.gamma, a.learning_starts, a.action_noise) == ("td3", 0.98, 0, 0.1)
+    assert (a.demos.bc_anchor, a.demos.bc_anchor_warmup, a.layer_norm) == (0.25, 2_500, "critic")
+    given = fast(reach_demos, algo="ddpg", gamma=0.95).agent
+    assert (given.algo, given.gamma) == ("ddpg", 0.95)
+    paper = AgentConfig()
+    assert (paper.algo, paper.gamma, paper.learning_starts, paper.action_noise) == ("ddpg", 0.95, 500, 0.2)
+    assert paper.demos.bc_anchor is None
+
+
+def test_the_fast_actor_starts_as_behaviour_cloning_of_the_demonstrations(reach_demos):
+    cfg = fast(reach_demos, bc_steps=1500)
+    venv = make_vec_env(cfg)
+    model = make_agent(cfg, venv)
+    demos = load_demos(reach_demos)
+    batches = DemoBatches(demos, venv)  # the normaliser already holds the demonstration states
+    with th.no_grad():
+        cloned = actor_action(model, batches.obs)
+        target = model.actor_target(batches.obs)
+    untrained = make_agent(fast(reach_demos, bc_steps=0), make_vec_env(cfg))
+    with th.no_grad():
+        before = actor_action(untrained, batches.obs)
+    error = ((cloned - batches.actions) ** 2).mean().item()
+    assert error < 0.2 * ((before - batches.actions) ** 2).mean().item()
+    assert th.equal(cloned, target)  # the target actor copied from the cloned one
+
+
+@pytest.mark.parametrize(
+    ("env_steps", "ramp"), [(0, 0.0), (2_000, 0.0), (3_750, 0.5), (5_000, 1.0), (9_000, 1.0)]
+)
+def test_the_anchor_scales_the_q_gradient_after_its_warmup(reach_demos, env_steps, ramp):
+    cfg = fast(reach_demos, bc_steps=0)
+    venv = make_vec_env(cfg)
+    model = make_agent(cfg, venv)
+    model.set_logger(configure(None, []))
+    buffer = model.replay_buffer
+    assert isinstance(buffer, DemoReplayBuffer)
+    fill_with_random_episodes(buffer, venv, 2)
+    batch = buffer.sample(64, venv)
+    optimizer = model.actor.optimizer
+    optimizer.zero_grad()
+    (-first_q(model.critic, batch.observations, model.actor(batch.observations)).mean()).backward()
+    raw = [p.grad.clone() for p in model.actor.parameters()]
+    with th.no_grad():
+        mean_abs_q = first_q(model.critic, batch.observations, model.actor(batch.observations)).abs().mean()
+    model.num_timesteps = env_steps
+    BCLoss(model, weight=0.0, q_filter=True, anchor=2.5, warmup=2_500)(optimizer, (), {})
+    scale = ramp * 2.5 / mean_abs_q.item()
+    for before, param in zip(raw, model.actor.parameters(), strict=True):
+        np.testing.assert_allclose(param.grad.numpy(), scale * before.numpy(), rtol=1e-5, atol=1e-12)
+    assert any(g.abs().max() > 0 for g in raw)  # a gradient to scale: the comparison can fail
+
+
+def test_the_anchored_bc_term_is_unfiltered(reach_demos):
+    loss = BCLoss(object(), weight=1.0, q_filter=True, anchor=2.5)  # type: ignore[arg-type]
+    assert not loss.q_filter
+    assert BCLoss(object(), weight=1.0, q_filter=True).q_filter  # type: ignore[arg-type]
