@@ -104,7 +104,7 @@ def metrics(run_dir: Path, cfg: TrainConfig) -> dict[str, Any]:
     bc = cfg.agent.algo == "bc"
     clock = [r["gradient_steps" if bc else "env_steps"] for r in rows]
     success = [r["eval_success_rate"] for r in rows]
-    after = [s for c, s in zip(clock, success, strict=True) if bc or c >= 2_500]
+    after = [s for c, s in zip(clock, success, strict=True) if c >= (1 if bc else 2_500)]
     return {
         "budget": int(clock[-1]),
         "evals": len(rows),
