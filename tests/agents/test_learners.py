@@ -444,3 +444,73 @@ def test_an_experiment_file_takes_learner_fast_and_its_recorded_demonstrations(t
     )
     assert run.agent.demos.reset_prob == preset["demos_reset_prob"]  # the experiment's demonstrations
     assert run.run_name.endswith("__demos__fast")
+
+
+def test_the_frontier_curriculum_moves_a_demonstrations_frontier_only_on_k_of_k_successes():
+    """RFCL's per-demonstration frontier: starts drawn at it, a failure restarts the count, k
+    successes in a row from demonstration i move its frontier (and only its) back by the stride."""
+    from tsrl.agents.demo_resets import FRONTIER_STRIDE
+
+    states = np.zeros((2, 51, 1))
+    wrapped = DemoResets(
+        gym.make("tsrl/UR5eReach-v0"), states, 1.0, 0, seed=0, frontier_k=3, first_success=np.array([30, 45])
+    )
+    assert {wrapped.frontier_step(0) for _ in range(200)} == set(range(30 - FRONTIER_STRIDE + 1, 31))
+    for outcome in [True, True, False, True, True]:  # never 3 in a row
+        wrapped.advance_frontier(0, outcome)
+    assert wrapped.frontier == [30, 45] and wrapped.frontier_outcomes[0] == [True, True]
+    wrapped.advance_frontier(0, True)  # the third in a row
+    assert wrapped.frontier == [30 - FRONTIER_STRIDE, 45] and wrapped.frontier_outcomes == [[], []]
+    for _ in range(3 * 20):  # never below the demonstration's first state
+        wrapped.advance_frontier(1, True)
+    assert wrapped.frontier == [30 - FRONTIER_STRIDE, 0]
+    state = wrapped.curriculum_state()
+    assert state["frontier"] == [30 - FRONTIER_STRIDE, 0]
+    wrapped.close()
+
+
+def test_a_frontier_episode_has_a_time_limit_that_grows_with_the_distance_to_the_end(reach_demos):
+    from tsrl.agents.demo_files import load_demos
+    from tsrl.agents.demo_resets import FRONTIER_MIN_STEPS, FRONTIER_TIME
+
+    demos = load_demos(reach_demos)
+    env = gym.make(REACH, obs="fs1")
+    replay = gym.make(REACH, obs="fs1")
+    states = replay_states(replay, demos, str(reach_demos))
+    first = np.argmax(demos.is_success, axis=1) + 1
+    wrapped = DemoResets(env, states, 1.0, 0, seed=0, frontier_k=2, first_success=first)
+    assert wrapped.frontier == [int(f) for f in first]
+    wrapped.frontier = [44] * len(first)  # as if moved there: an episode near the demonstration's end
+    _, info = wrapped.reset(seed=1)
+    _, step = info["demo_reset"]
+    assert 42 <= step <= 44
+    limit = min(50, max(FRONTIER_MIN_STEPS, FRONTIER_TIME * (50 - step)))
+    lengths = 0
+    truncated = terminated = False
+    while not (terminated or truncated):
+        *_, terminated, truncated, info = wrapped.step(np.zeros(3, dtype=np.float32))
+        lengths += 1
+    assert lengths == limit < 50 and truncated
+    wrapped.close()
+    replay.close()
+
+
+def test_a_resumed_run_continues_its_frontiers(reach_demos, tmp_path, monkeypatch):
+    from tsrl.agents.checkpoint import DEMO_RESETS, usable_checkpoint
+    from tsrl.agents.training import resume, train
+
+    demos = DemoConfig(path=str(reach_demos), reset_prob=1.0, reset_frontier_k=1)
+    run_dir = train(tiny(total=200, demos=demos), tmp_path, progress_bar=False)
+    checkpoint = usable_checkpoint(run_dir, True, for_training=True)
+    assert checkpoint is not None and checkpoint.rng is not None
+    saved = checkpoint.rng[DEMO_RESETS]["frontier"]
+    seen: list[list[int]] = []  # the frontiers at the resumed run's first demonstration reset
+    draw = DemoResets.frontier_step
+
+    def recording(self: DemoResets, episode: int) -> int:
+        seen.append(list(self.frontier))
+        return draw(self, episode)
+
+    monkeypatch.setattr(DemoResets, "frontier_step", recording)
+    resume(run_dir, total_timesteps=300, progress_bar=False)
+    assert seen and seen[0] == saved

@@ -122,10 +122,28 @@ def verify_checkpoint(path: Path, normalized: bool, for_training: bool) -> Check
     return Checkpoint(path, state, normalizer, buffer, rng)
 
 
+_CURRICULUM = ("window", "outcomes")
+_FRONTIER = ("frontier", "frontier_outcomes")
+
+
+def _is_frontier_state(frontier: object, outcomes: object) -> bool:
+    """Whether the per-demonstration frontier's state has its form: a list of int >= 0, and as many
+    lists of bool."""
+    return (
+        isinstance(frontier, list)
+        and all(isinstance(f, int) and not isinstance(f, bool) and f >= 0 for f in frontier)
+        and isinstance(outcomes, list)
+        and len(outcomes) == len(frontier)
+        and all(isinstance(o, list) and all(isinstance(b, bool) for b in o) for o in outcomes)
+    )
+
+
 def _is_curriculum_state(value: object) -> bool:
     """Whether `value` has the form of DemoResets.curriculum_state: {"window": int >= 1, "outcomes":
     list of bool}."""
-    if not isinstance(value, dict) or set(value) != {"window", "outcomes"}:
+    if not isinstance(value, dict) or set(value) not in ({"window", "outcomes"}, {*_CURRICULUM, *_FRONTIER}):
+        return False
+    if "frontier" in value and not _is_frontier_state(value["frontier"], value["frontier_outcomes"]):
         return False
     window, outcomes = value["window"], value["outcomes"]
     return (

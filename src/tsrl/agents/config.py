@@ -158,6 +158,11 @@ class DemoConfig:
     demonstrations at once) instead of by env steps: the window of restored steps starts at the
     demonstration's last step and widens by a tenth of the demonstration whenever the last 20 episodes
     started from a demonstration state since it last widened succeeded at a rate >= s."""
+    reset_frontier_k: Annotated[int, arg(name="demos-reset-frontier-k")] = 0
+    """0: off; k > 0: RFCL's reverse curriculum (Tao et al. 2024), one frontier per demonstration,
+    first at its first successful state, moved a few steps back after k of k successes from it;
+    starts drawn at the frontier and an episode time limit that grows with the distance to the
+    demonstration's end (tsrl.agents.demo_resets.DemoResets). Needs reset_prob > 0."""
     bc_anchor: Annotated[float | None, arg(name="demos-bc-anchor")] = None
     """alpha > 0: the actor loss is alpha * (-Q) / mean|Q(s, pi(s))| of the batch plus bc_weight x BC on
     every demonstration row, unfiltered (TD3+BC's anchor, Fujimoto & Gu 2021: the BC weight means the
@@ -207,6 +212,13 @@ class DemoConfig:
         success = self.reset_curriculum_success
         if not is_number(success) or not 0 <= success <= 1:
             raise InvalidConfig(f"demos reset_curriculum_success must be in [0, 1]; got {success!r}")
+        check_int("demos reset_frontier_k", self.reset_frontier_k, 0)
+        if self.reset_frontier_k and (success or self.reset_curriculum_steps):
+            raise InvalidConfig(
+                f"demos reset_frontier_k {self.reset_frontier_k} with reset_curriculum_steps "
+                f"{self.reset_curriculum_steps} / reset_curriculum_success {success}: one reverse curriculum; "
+                "accepted: the other two 0"
+            )
         if success and self.reset_curriculum_steps:
             raise InvalidConfig(
                 f"demos reset_curriculum_steps {self.reset_curriculum_steps} with reset_curriculum_success "
@@ -382,7 +394,10 @@ class AgentConfig:
         if demos.bc_anchor_warmup is None:
             demos = dataclasses.replace(demos, bc_anchor_warmup=preset["demos_bc_anchor_warmup"])
         if not demos.active and (
-            demos.reset_prob or demos.reset_curriculum_steps or demos.reset_curriculum_success
+            demos.reset_prob
+            or demos.reset_curriculum_steps
+            or demos.reset_curriculum_success
+            or demos.reset_frontier_k
         ):
             raise InvalidConfig(
                 f"demos reset_prob {demos.reset_prob} / reset_curriculum_steps {demos.reset_curriculum_steps} "
@@ -395,7 +410,7 @@ class AgentConfig:
             # None stays None (no resets) otherwise: a file given later (dataclasses.replace, as
             # experiments add theirs, or with --resume) finds the same config as the paper's runs have
             demos = dataclasses.replace(demos, reset_prob=preset["demos_reset_prob"])
-        for name in ("reset_curriculum_steps", "reset_curriculum_success"):
+        for name in ("reset_curriculum_steps", "reset_curriculum_success", "reset_frontier_k"):
             if getattr(demos, name) > 0 and not demos.reset_prob:
                 raise InvalidConfig(
                     f"demos {name} {getattr(demos, name)} with reset_prob {demos.reset_prob}: a reset "

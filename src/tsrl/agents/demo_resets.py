@@ -68,6 +68,14 @@ def replay_states(env: gym.Env, demos: Demonstrations, path: str) -> np.ndarray:
     return states
 
 
+#: The per-demonstration frontier (DemoConfig.reset_frontier_k, RFCL, Tao et al. 2024): steps a
+#: frontier moves back after k of k successes from it (and the width of the window starts are drawn
+#: from, ending at the frontier); the time limit of an episode started at step t of a T-step
+#: demonstration: FRONTIER_TIME x (T - t) steps, at least FRONTIER_MIN_STEPS (never more than T).
+FRONTIER_STRIDE = 3
+FRONTIER_TIME = 2
+FRONTIER_MIN_STEPS = 10
+
 #: The success-paced curriculum (DemoConfig.reset_curriculum_success): the number of last
 #: demonstration-started episodes it judges a window by, and the window's growth (a fraction of T).
 PACE_EPISODES = 20
@@ -87,6 +95,13 @@ class DemoResets(gym.Wrapper):
         curriculum_success: 0: off; s > 0: the step is uniform in [T - w, T - 1] with w starting at 1
             and growing by ceil(PACE_STRIDE * T) (up to T) whenever the last PACE_EPISODES
             demonstration-started episodes since it last grew succeeded at a rate >= s.
+        frontier_k: 0: off; k > 0: RFCL's reverse curriculum per demonstration. Demonstration i has a
+            frontier f_i, first its first successful state (`first_success[i]`); an episode started
+            from it begins at a step uniform in [f_i - FRONTIER_STRIDE + 1, f_i] (at least 0), is
+            truncated after FRONTIER_TIME x (T - step) steps (at least FRONTIER_MIN_STEPS), and f_i
+            moves FRONTIER_STRIDE steps back once k episodes in a row started from demonstration i
+            succeed; a failure starts the count again.
+        first_success: (N,) the state index of each demonstration's first success (frontier_k > 0).
     """
 
     def __init__(
@@ -97,8 +112,14 @@ class DemoResets(gym.Wrapper):
         curriculum_steps: int,
         seed: int,
         curriculum_success: float = 0.0,
+        frontier_k: int = 0,
+        first_success: np.ndarray | None = None,
     ):
         super().__init__(env)
+        self.frontier_k = frontier_k
+        self.frontier = [int(f) for f in first_success] if first_success is not None else []
+        self.frontier_outcomes: list[list[bool]] = [[] for _ in self.frontier]
+        self.steps_left: int | None = None  # the frontier episode's own time limit
         self.states = states
         self.prob = prob
         self.curriculum_steps = curriculum_steps
@@ -112,7 +133,13 @@ class DemoResets(gym.Wrapper):
 
     def curriculum_state(self) -> dict[str, Any]:
         """The success-paced curriculum's state, for a checkpoint (continue_from takes it back)."""
-        return {"window": self.window, "outcomes": list(self.outcomes)}
+        state: dict[str, Any] = {"window": self.window, "outcomes": list(self.outcomes)}
+        if self.frontier_k:
+            state |= {
+                "frontier": list(self.frontier),
+                "frontier_outcomes": [list(o) for o in self.frontier_outcomes],
+            }
+        return state
 
     def continue_from(self, env_steps: int, episodes: int, curriculum: dict[str, Any] | None = None) -> None:
         """A resumed run's wrapper: the curriculum at `env_steps` (the checkpoint's) and, paced by
@@ -122,6 +149,15 @@ class DemoResets(gym.Wrapper):
         self.rng = np.random.default_rng([self.seed, 0xDE30, episodes])
         if curriculum is not None:
             self.window, self.outcomes = int(curriculum["window"]), list(curriculum["outcomes"])
+            if "frontier" in curriculum:
+                self.frontier = [int(f) for f in curriculum["frontier"]]
+                self.frontier_outcomes = [list(o) for o in curriculum["frontier_outcomes"]]
+
+    def frontier_step(self, episode: int) -> int:
+        """The step of demonstration `episode` a reset restores with the frontier curriculum (drawn
+        from the FRONTIER_STRIDE steps ending at its frontier)."""
+        front = self.frontier[episode]
+        return int(self.rng.integers(max(0, front - FRONTIER_STRIDE + 1), front + 1))
 
     def start_step(self) -> int:
         """The demonstration step the next demonstration reset restores (drawn)."""
@@ -138,10 +174,14 @@ class DemoResets(gym.Wrapper):
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         self.last_reset = None
+        self.steps_left = None
         if self.rng.random() >= self.prob:
             return obs, info
         episode = int(self.rng.integers(self.states.shape[0]))
-        step = self.start_step()
+        step = self.frontier_step(episode) if self.frontier_k else self.start_step()
+        if self.frontier_k:
+            t_steps = self.states.shape[1] - 1
+            self.steps_left = min(t_steps, max(FRONTIER_MIN_STEPS, FRONTIER_TIME * (t_steps - step)))
         base = self.env.unwrapped
         assert isinstance(base, TaskEnv)
         obs = restore_state(base, self.states[episode, step])
@@ -152,9 +192,27 @@ class DemoResets(gym.Wrapper):
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         self.env_steps += 1
         obs, reward, terminated, truncated, info = self.env.step(action)
-        if self.curriculum_success and self.last_reset is not None and (terminated or truncated):
-            self._pace(bool(info["is_success"]))
+        if self.steps_left is not None:
+            self.steps_left -= 1
+            if self.steps_left <= 0 and not terminated and not truncated:
+                truncated = True  # the frontier episode's own, shorter time limit
+                info = info | {"TimeLimit.truncated": True}
+        if self.last_reset is not None and (terminated or truncated):
+            if self.curriculum_success:
+                self._pace(bool(info["is_success"]))
+            if self.frontier_k:
+                self.advance_frontier(self.last_reset[0], bool(info["is_success"]))
+            self.steps_left = None
         return obs, reward, terminated, truncated, info
+
+    def advance_frontier(self, episode: int, success: bool) -> None:
+        """Counts an outcome of an episode started from demonstration `episode`: k successes in a row
+        move its frontier FRONTIER_STRIDE steps back (not below 0); a failure restarts the count."""
+        outcomes = [*self.frontier_outcomes[episode], success] if success else []
+        if len(outcomes) >= self.frontier_k:
+            self.frontier[episode] = max(0, self.frontier[episode] - FRONTIER_STRIDE)
+            outcomes = []
+        self.frontier_outcomes[episode] = outcomes
 
     def _pace(self, success: bool) -> None:
         """Counts a demonstration-started episode's outcome; widens the window when they succeed."""

@@ -91,11 +91,22 @@ def _training_env(cfg: TrainConfig) -> gym.Env:
     assert demos.path is not None  # AgentConfig: resets need demonstrations
     replay = make_env(cfg)
     try:
-        states = replay_states(replay, load_demos(demos.path, DemoSpec.of(env)), demos.path)
+        loaded = load_demos(demos.path, DemoSpec.of(env))
+        states = replay_states(replay, loaded, demos.path)
     finally:
         replay.close()
+    first_success = None
+    if demos.reset_frontier_k:  # each demonstration's first successful state (is_success is after a step)
+        first_success = np.argmax(loaded.is_success, axis=1) + 1
     return DemoResets(
-        env, states, demos.reset_prob, demos.reset_curriculum_steps, cfg.seed, demos.reset_curriculum_success
+        env,
+        states,
+        demos.reset_prob,
+        demos.reset_curriculum_steps,
+        cfg.seed,
+        demos.reset_curriculum_success,
+        demos.reset_frontier_k,
+        first_success,
     )
 
 
