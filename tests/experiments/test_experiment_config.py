@@ -131,20 +131,22 @@ def _rows(seed: int, success: list[float], obs: str = "fs1") -> list[dict]:
 
 
 def test_summary_censors_seeds_that_never_reach_a_threshold():
+    # Sustained crossings (the mean of three consecutive evaluations from there on stays at the level):
     rows = (
-        _rows(0, [0.0, 0.6, 0.95, 1.0, 1.0])  # 50% at 500 steps, 90% at 1000
-        + _rows(1, [0.0, 0.2, 0.55, 0.95, 0.9])  # 50% at 1000, 90% at 1500
+        _rows(0, [0.0, 0.6, 0.95, 1.0, 1.0])  # means 0.52, 0.85, 0.98: 50% from 0, 90% and 95% from 1000
+        + _rows(1, [0.0, 0.2, 0.55, 0.95, 0.9])  # means 0.25, 0.57, 0.80: 50% from 500, never 90%
         + _rows(2, [0.0, 0.1, 0.2, 0.3, 0.4])  # never: censored at 2000
         + _rows(0, [0.0, 0.0, 0.0, 0.0, 0.0], obs="baseline")
     )
     baseline, fs1 = summarize(sorted(rows, key=sort_key))  # Table I order
     assert (fs1["obs"], fs1["seeds"], fs1["final_env_steps"], fs1["final_evals"]) == ("fs1", 3, 2000, 3)
     assert (fs1["evaluations"], fs1["eval_episodes"]) == (5, "20")
-    # Kaplan-Meier, 50%: S = 2/3 at 500, 1/3 at 1000 -> 1000 (the mean over reaching seeds said 750).
-    assert fs1["seeds_reaching_50"] == 2 and fs1["env_steps_to_50_km_median"] == 1000
-    assert fs1["seeds_reaching_90"] == 2 and fs1["env_steps_to_90_km_median"] == 1500
-    assert fs1["episodes_to_90_km_median"] == 30
-    assert fs1["seeds_reaching_95"] == 2 and fs1["env_steps_to_95_km_median"] == 1500  # 1000, 1500
+    # Kaplan-Meier, 50%: S = 2/3 at 0, 1/3 at 500 -> 500 (the mean over reaching seeds says 250).
+    assert fs1["seeds_reaching_50"] == 2 and fs1["env_steps_to_50_km_median"] == 500
+    # 90% and 95%: one seed of three (1000), two censored at 2000: fewer than half known -> inf.
+    assert fs1["seeds_reaching_90"] == 1 and fs1["env_steps_to_90_km_median"] == math.inf
+    assert fs1["episodes_to_90_km_median"] == math.inf
+    assert fs1["seeds_reaching_95"] == 1 and fs1["env_steps_to_95_km_median"] == math.inf
     # AUC: trapezoids of 500 steps over 2000: 1525 / 2000, 1075 / 2000, 400 / 2000; IQM of 3 = mean.
     assert fs1["auc_iqm"] == pytest.approx((0.7625 + 0.5375 + 0.2) / 3)
     assert fs1["auc_ci_low"] <= fs1["auc_iqm"] <= fs1["auc_ci_high"]
@@ -290,3 +292,15 @@ def test_plot_colours_keep_the_papers_for_its_presets_and_give_others_unused_one
     assert baseline == PAPER_COLOURS["baseline"] and mcolors.to_hex(phi) not in paper
     many = [mcolors.to_hex(c) for c in colours(curves(*(f"spec{i}" for i in range(20))))]
     assert len(many) == 20 and not set(many) & paper  # tab20 less the paper's colours, cycled
+
+
+def test_a_sustained_crossing_needs_three_evaluations_that_hold_the_level():
+    from tsrl.experiments.curves import sustained_crossing
+
+    steps = [0, 1, 2, 3, 4, 5]
+    # One evaluation at 0.96 between lower ones does not count; the run holds 0.95 from step 2 on.
+    assert sustained_crossing(steps, [0.5, 0.96, 0.97, 0.9, 0.99, 1.0], 0.95) == 2
+    # A run at the level that falls back at its end never held it.
+    assert math.isnan(sustained_crossing(steps[:4], [1.0, 1.0, 1.0, 0.5], 0.95))
+    assert math.isnan(sustained_crossing(steps[:2], [1.0, 1.0], 0.95))  # fewer than three evaluations
+    assert sustained_crossing(steps[:3], [0.9, 1.0, 1.0], 0.95) == 0  # the mean from the first on

@@ -9,8 +9,9 @@ comparisons, the report. Statistics across seeds come from tsrl.experiments.stat
 - final success: per seed, the mean of the last FINAL_EVALS of those evaluations; IQM and interval;
 - final penalised episodes (tasks with penalties, e.g. touching an obstacle): per seed, the mean share
   of evaluation episodes with a penalised step over the last FINAL_EVALS evaluations; IQM and interval;
-- env steps / episodes to a threshold (50%, 90%, 95%): per seed, the first evaluation at or above it; a seed
-  that never gets there is censored at its last evaluation, and the Kaplan-Meier median is reported
+- env steps / episodes to a threshold (50%, 90%, 95%): per seed, the first evaluation from which the
+  mean of FINAL_EVALS consecutive evaluations stays at or above it (curves.sustained_crossing: one
+  noisy evaluation does not count); a seed that never gets there is censored at its last evaluation, and the Kaplan-Meier median is reported
   with the number of seeds that reached it (k of n); inf when fewer than half are known to have;
 - comparisons (the experiment file's [[comparisons]]): IQM(a) - IQM(b) of a per-seed metric with its
   interval, the probability of improvement P(a > b) with its interval, a Mann-Whitney U test on the
@@ -36,7 +37,7 @@ from ..exceptions import InvalidConfig, TsrlError
 from . import evaluations as ev
 from . import statistics as st
 from .config import EVAL_METRIC, EXPERIMENT_FILE, Comparison, Key, config_labels, env_label
-from .curves import FINAL_EVALS, Curve, curves, row_key
+from .curves import FINAL_EVALS, Curve, curves, row_key, sustained_crossing
 from .plots import describe_agent, plot_curves, plot_penalised, plot_profile
 from .results import find_runs, variants
 from .runner import ERROR_FILE
@@ -132,12 +133,11 @@ def sort_key(row: dict[str, Any]) -> tuple[Any, ...]:
 
 
 def time_to_threshold(run: list[dict[str, Any]], threshold: float, unit: str) -> tuple[float, bool]:
-    """(time, reached) of one run (rows sorted by env steps) in `unit` (env_steps or episodes): its
-    first evaluation at or above `threshold`, or its last evaluation, censored, if none is."""
-    for r in run:
-        if r["eval_success_rate"] >= threshold:
-            return float(r[unit]), True
-    return float(run[-1][unit]), False
+    """(time, reached) of one run (rows sorted by env steps) in `unit` (env_steps or episodes): the
+    evaluation from which the mean of FINAL_EVALS consecutive evaluations stays at or above
+    `threshold` (sustained_crossing), or its last evaluation, censored, if there is none."""
+    time = sustained_crossing([float(r[unit]) for r in run], [r["eval_success_rate"] for r in run], threshold)
+    return (time, True) if not math.isnan(time) else (float(run[-1][unit]), False)
 
 
 def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
