@@ -112,6 +112,7 @@ class Deploy:
 
         assert self.export_dir is not None
         goal = _parse_goal(self.goal)
+        check_log_path(self.log)  # before anything connects
         sim = {
             "scene": self.scene,
             "realtime": self.realtime,
@@ -135,7 +136,7 @@ class Deploy:
         )
         controller = Controller.from_export(self.export_dir, options)
         if goal is not None:
-            controller.set_goal(goal)  # the goal's size checked before the arm moves
+            controller.check_goal(goal)  # finite, its size, inside the workspace: before the arm moves
         check_backend(backend, controller.contract)  # before the log: a mismatch leaves nothing behind
         if self.dry_run:
             backend = ShadowBackend(backend)
@@ -176,8 +177,29 @@ class Deploy:
             f"replayed {result.cycles} policy steps of {self.replay}: largest difference from the log: joint "
             f"target {result.max_target_difference:.3g} rad, action {result.max_action_difference:.3g}, servo "
             f"command {result.max_servo_difference:.3g} rad; video: {result.video}"
+            + (
+                ""
+                if result.ends_early is None
+                else f"; the log ends early ({result.ends_early}): its complete records were replayed"
+            )
         )
         return 0 if result.max_target_difference <= 1e-9 and result.max_servo_difference <= 1e-9 else 1
+
+
+def check_log_path(path: Path) -> None:
+    """Raises InvalidConfig unless `path` can be written as a file: not a folder, and its nearest
+    existing parent folder writable (the folders between are created with the first record)."""
+    import os
+
+    if path.is_dir():
+        raise InvalidConfig(f"--log {path} is a folder; give a file path, e.g. {path / 'deploy.jsonl'}")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise InvalidConfig(f"--log {path} is not writable")
+    parent = path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise InvalidConfig(f"--log {path}: {parent} is not a writable folder")
 
 
 def _parse_goal(text: str | None) -> tuple[float, ...] | None:

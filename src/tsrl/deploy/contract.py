@@ -9,15 +9,18 @@ An export folder (`tsrl export RUN --out DIR`, tsrl.deploy.export)::
     DIR/robot.toml      the robot's names (joints, TCP, servos, suction)
     DIR/model/...       the scene's MJCF files (and those it includes), their layout kept
 
-`contract.json` lists the sha256 of every other file; `read_contract` refuses a folder where one is
-missing or differs, and a contract written by another major version of tsrl. Nothing here imports
-torch or stable-baselines3.
+`contract.json` lists the sha256 of every other file and carries its own (`sha256`: of its other
+keys, written canonically: `contract_digest`); `read_contract` refuses a folder where a file is
+missing or differs, an altered contract, a contract written by another major version of tsrl, and
+limits or normaliser statistics a safety layer or a policy cannot use (`check_values`: finite,
+positive, ordered). Nothing here imports torch or stable-baselines3.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -67,6 +70,96 @@ def sha256(path: Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def contract_digest(contract: dict[str, Any]) -> str:
+    """Hex sha256 of a contract's keys other than `sha256`, as canonical JSON (sorted keys, no spaces)."""
+    body = {k: v for k, v in contract.items() if k != "sha256"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+#: The largest normaliser mean or standard deviation an export accepts: far beyond any physical
+#: observation of a task (m, rad, m/s), and far below what a damaged float byte gives (e.g. -4.9e307).
+MAX_STATISTIC = 1e6
+
+
+def check_normalizer_statistics(where: str, key: str, mean: Any, var: Any, count: Any) -> None:
+    """Raises ContractError unless the statistics of one observation entry are usable: mean and var
+    finite, var >= 0, |mean| and sqrt(var) <= MAX_STATISTIC, count > 0 (one line naming `where`)."""
+    ranges = {"mean": (-MAX_STATISTIC, MAX_STATISTIC), "var": (0.0, MAX_STATISTIC**2)}
+    for name, values in (("mean", mean), ("var", var)):
+        lo, hi = ranges[name]
+        bad = [v for v in _floats(values) if not (math.isfinite(v) and lo <= v <= hi)]
+        if bad:
+            bound = f"{lo:g} <= {name} <= {hi:g}"
+            raise ContractError(
+                f"{where}: normaliser {name} of {key!r} holds {bad[0]!r}; a usable normaliser has finite "
+                f"statistics with {bound} (a damaged file? train or export again)"
+            )
+    if not (isinstance(count, int | float) and math.isfinite(count) and count > 0):
+        raise ContractError(f"{where}: normaliser count of {key!r} is {count!r}; it must be > 0")
+
+
+def _floats(values: Any) -> list[float]:
+    """A number or a (nested) list of numbers as a flat list of floats (a non-number as NaN)."""
+    if isinstance(values, list | tuple):
+        return [v for x in values for v in _floats(x)]
+    if hasattr(values, "tolist"):
+        return _floats(values.tolist())
+    return [float(values)] if isinstance(values, int | float) and not isinstance(values, bool) else [math.nan]
+
+
+def check_values(contract: dict[str, Any], where: str) -> None:
+    """Raises ContractError (one line naming `where`, the key, the value and what is accepted) unless
+    the contract's limits are usable: joint limits finite with lower < upper, one per joint; speed and
+    acceleration limits finite and > 0, one per joint; home inside the joint limits; control period and
+    physics timestep > 0; the workspace finite with low < high; the normaliser's statistics usable."""
+    robot, task = contract["robot"], contract["task"]
+    n = len(robot["joints"])
+    limits = robot["joint_limits"]
+    if not (isinstance(limits, list) and len(limits) == n):
+        raise ContractError(f"{where}: robot.joint_limits must hold {n} [lower, upper] pairs; got {limits!r}")
+    for joint, pair in zip(robot["joints"], limits):
+        values = _floats(pair)
+        lo, hi = values if len(values) == 2 else (math.nan, math.nan)
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise ContractError(
+                f"{where}: robot.joint_limits of {joint!r} is {pair!r}; accepted: finite [lower, upper] with "
+                "lower < upper (the safety layer needs finite limits on every joint)"
+            )
+    for key in ("max_joint_speed", "max_joint_acceleration"):
+        values = _floats(robot[key])
+        if len(values) != n or not all(math.isfinite(v) and v > 0 for v in values):
+            raise ContractError(f"{where}: robot.{key} is {robot[key]!r}; accepted: {n} finite values > 0")
+    home = _floats(robot["home_q"])
+    inside = len(home) == n and all(lo <= q <= hi for q, (lo, hi) in zip(home, limits))
+    if not inside:
+        raise ContractError(
+            f"{where}: robot.home_q is {robot['home_q']!r}; accepted: {n} values within joint_limits"
+        )
+    for key in ("control_period_s", "physics_timestep_s"):
+        value = _floats(task[key])
+        if not (len(value) == 1 and math.isfinite(value[0]) and value[0] > 0):
+            raise ContractError(f"{where}: task.{key} is {task[key]!r}; accepted: a finite value > 0")
+    workspace = contract.get("workspace")
+    if workspace is not None:
+        low, high = _floats(workspace["low"]), _floats(workspace["high"])
+        ordered = len(low) == len(high) and all(
+            math.isfinite(a) and math.isfinite(b) and a < b for a, b in zip(low, high)
+        )
+        if not ordered:
+            raise ContractError(
+                f"{where}: workspace is low {workspace['low']!r}, high {workspace['high']!r}; accepted: finite "
+                "bounds of equal length with low < high"
+            )
+    normalizer = contract["policy"].get("normalizer")
+    if normalizer is not None:
+        for key in ("epsilon", "clip"):
+            value = _floats(normalizer[key])
+            if not (len(value) == 1 and math.isfinite(value[0]) and value[0] > 0):
+                raise ContractError(f"{where}: policy.normalizer.{key} is {normalizer[key]!r}; accepted: > 0")
+        for key, stats in normalizer["statistics"].items():
+            check_normalizer_statistics(where, key, stats["mean"], stats["var"], stats["count"])
 
 
 def major(version: str) -> int:
@@ -143,7 +236,8 @@ def read_contract(export_dir: Path | str) -> dict[str, Any]:
 
     Raises:
         ContractError: no contract.json, not a tsrl contract, another major version of tsrl or
-            another contract layout, a file it lists missing or with another sha256 (one line
+            another contract layout, a contract altered since export, unusable limits or normaliser
+            statistics (check_values), a file it lists missing or with another sha256 (one line
             naming the file and what was expected).
     """
     from .. import __version__
@@ -168,6 +262,16 @@ def read_contract(export_dir: Path | str) -> dict[str, Any]:
         raise ContractError(
             f"{path}: contract_version {contract.get('contract_version')!r}; this tsrl reads {CONTRACT_VERSION}"
         )
+    digest = contract_digest(contract)
+    if contract.get("sha256") != digest:
+        raise ContractError(
+            f"{path}: altered since export (its sha256 is {contract.get('sha256')!r}, its content's {digest}); "
+            "export the run again rather than editing the contract"
+        )
+    try:
+        check_values(contract, str(path))
+    except (KeyError, TypeError) as err:
+        raise ContractError(f"{path}: a contract without {err} (export the run again)") from None
     files = contract.get("files")
     if not isinstance(files, dict) or POLICY not in files:
         raise ContractError(f"{path}: 'files' must map every file of the export to its sha256")

@@ -224,6 +224,22 @@ class Controller:
         self._goal = g
         self._goal_set = True
 
+    def check_goal(self, goal: ArrayLike) -> None:
+        """Raises InvalidConfig (one line) unless a goal given by hand (g,) is finite, of the contract's
+        size, and its positions lie inside the contract's workspace box (where it has one)."""
+        g = np.asarray(goal, dtype=np.float64).reshape(-1)
+        if not np.isfinite(g).all():
+            raise InvalidConfig(
+                f"goal {g.tolist()} is not finite; give finite numbers [m] in the world frame"
+            )
+        self.set_goal(g)
+        if self.workspace is not None and not self._goal_within_workspace():
+            low, high = self.workspace
+            raise InvalidConfig(
+                f"goal {g.tolist()} lies outside the contract's workspace (low {low.tolist()}, high "
+                f"{high.tolist()} m, world frame)"
+            )
+
     def sample_goal(self, seed: int) -> np.ndarray:
         """A goal (g,) drawn as the task draws it at reset with this seed (the same as `tsrl evaluate`'s
         episode with that seed)."""

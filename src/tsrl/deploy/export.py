@@ -33,6 +33,7 @@ from .. import __version__
 from ..agents.config import TrainConfig
 from ..agents.evaluation import load_run_policy
 from ..agents.factory import make_env
+from ..agents.run_folder import CONFIG_FILE
 from ..assets import SCENES, scene_path
 from ..envs import TaskEnv
 from ..exceptions import InvalidConfig
@@ -48,6 +49,9 @@ from .contract import (
     POLICY,
     ROBOT,
     TASK,
+    check_normalizer_statistics,
+    check_values,
+    contract_digest,
     describe_rows,
     previous_action_rows,
     sha256,
@@ -109,6 +113,7 @@ def export_run(
     override the built-in robot's limits; a robot that is not built in needs both.
     """
     run_dir = Path(run_dir)
+    check_out(out, run_dir)
     cfg, model, normalizer, checkpoint = load_run_policy(run_dir)
     run = {
         "dir": str(run_dir.resolve()),
@@ -130,6 +135,7 @@ def export_policy(
 ) -> Path:
     """Exports `model` (trained with `cfg`, its normaliser `normalizer`) into `out` (module docstring)."""
     out = Path(out)
+    check_out(out, Path(run["dir"]) if run else None)
     if not cfg.is_tsrl_env:
         raise InvalidConfig(f"tsrl export needs a tsrl environment; the run trained on {cfg.env_id!r}")
     env = make_env(cfg).unwrapped
@@ -153,6 +159,10 @@ def export_policy(
     if task.source is None:
         raise InvalidConfig(f"task {task.name!r} was built in code; export needs a task file")
     keys = tuple(cfg.agent.policy_inputs)
+    if normalizer is not None:
+        for key in keys:
+            rms = normalizer.obs_rms[key]
+            check_normalizer_statistics("the run's vecnormalize.pkl", key, rms.mean, rms.var, rms.count)
     limits = robot_limits(task.robot, len(env.robot.joints), max_joint_speed, max_joint_acceleration)
     out.parent.mkdir(parents=True, exist_ok=True)
     with replacing(out) as tmp:
@@ -165,10 +175,51 @@ def export_policy(
         contract["files"] = {
             str(p.relative_to(tmp)): sha256(p) for p in sorted(tmp.rglob("*")) if p.is_file()
         }
+        contract = json.loads(json.dumps(contract))  # as a reader will see it
+        contract["sha256"] = contract_digest(contract)
+        check_values(contract, f"the export of {task.name!r}")
         (tmp / CONTRACT).write_text(contract_text(contract))
         _check(tmp, contract, env, model, normalizer, keys)
     env.close()
     return out
+
+
+def check_out(out: Path | str, run_dir: Path | None = None) -> None:
+    """Raises InvalidConfig (nothing is deleted) unless `out` may be replaced by an export: absent, an
+    empty folder, or a folder an export wrote (its contract.json and the files it lists, nothing
+    else). A run folder, a folder holding `run_dir` or any run (a child with config.json), a file and
+    any other non-empty folder are refused."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidConfig(f"--out {out} is a file; give a new folder or an earlier export's")
+    if run_dir is not None:
+        run = run_dir.resolve()
+        if out.resolve() == run or out.resolve() in run.parents:
+            raise InvalidConfig(f"--out {out} holds the run {run_dir}; an export replaces its folder whole")
+    if not out.is_dir():
+        return
+    if (out / CONFIG_FILE).is_file():
+        raise InvalidConfig(f"--out {out} is a run folder; an export replaces its folder whole")
+    runs = sorted(c.name for c in out.iterdir() if (c / CONFIG_FILE).is_file())
+    if runs:
+        raise InvalidConfig(f"--out {out} holds runs ({runs[0]}, ...); an export replaces its folder whole")
+    if any(out.iterdir()) and not _written_by_export(out):
+        raise InvalidConfig(
+            f"--out {out} is a non-empty folder that `tsrl export` did not write; give a new or empty folder"
+        )
+
+
+def _written_by_export(folder: Path) -> bool:
+    """Whether `folder` holds an export's contract.json and the files it lists, and nothing else."""
+    try:
+        contract = json.loads((folder / CONTRACT).read_text())
+        listed = {CONTRACT, *contract["files"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    if not isinstance(contract, dict) or contract.get("format") != FORMAT:
+        return False
+    present = {str(p.relative_to(folder)) for p in folder.rglob("*") if not p.is_dir()}
+    return present <= listed
 
 
 def contract_text(contract: dict[str, Any]) -> str:

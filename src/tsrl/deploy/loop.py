@@ -118,20 +118,55 @@ def _jsonable(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
+@dataclass(frozen=True)
+class LogRecords:
+    """A deploy log's complete records, and whether (and where) the log ends early."""
+
+    header: dict[str, Any]
+    cycles: list[dict[str, Any]]
+    """The start and cycle records, in order."""
+    episodes: list[dict[str, Any]]
+    ends_early: str | None
+    """None for a whole log; else what is missing (a cut last line, an episode without its end)."""
+
+
 def read_log(path: Path | str) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
-    """(header, start and cycle records in order, episode records) of a deploy log; InvalidConfig naming
-    the file otherwise."""
+    """(header, start and cycle records in order, episode records) of a deploy log (`read_log_records`)."""
+    records = read_log_records(path)
+    return records.header, records.cycles, records.episodes
+
+
+def read_log_records(path: Path | str) -> LogRecords:
+    """A deploy log's complete records. A log cut anywhere (as by a crash: a last line cut short, an
+    episode without its end record) gives its complete records and says where it ends early; a line
+    that is not JSON before the last is InvalidConfig naming the file and the line's number."""
     path = Path(path)
     try:
-        lines = path.read_text().splitlines()
-        records = [json.loads(line) for line in lines if line.strip()]
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as err:
         raise InvalidConfig(f"{path}: not a readable deploy log ({err})") from None
+    lines = text.split("\n")
+    last = max((i for i, line in enumerate(lines) if line.strip()), default=-1)
+    records: list[dict[str, Any]] = []
+    ends_early = None
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            records.append(json.loads(line))
+        except json.JSONDecodeError as err:
+            if i != last:
+                raise InvalidConfig(f"{path}: line {i + 1} is not a JSON record ({err.msg})") from None
+            ends_early = f"its last line ({i + 1}) is cut short"
     if not records or records[0].get("type") != "header":
         raise InvalidConfig(f"{path}: not a deploy log (no header line); write one with `tsrl deploy`")
     cycles = [r for r in records if r.get("type") in ("start", "cycle")]
     episodes = [r for r in records if r.get("type") == "episode"]
-    return records[0], cycles, episodes
+    started = sum(r.get("type") == "start" for r in cycles)
+    if started > len(episodes):
+        cut = f"episode {started - 1} has no end record"
+        ends_early = cut if ends_early is None else f"{ends_early}; {cut}"
+    return LogRecords(records[0], cycles, episodes, ends_early)
 
 
 def run_episodes(
@@ -248,6 +283,8 @@ class ReplayResult:
     max_servo_difference: float
     """Largest |recomputed - logged| servo command [rad] (0 for a log of --servo hold)."""
     video: Path | None
+    ends_early: str | None = None
+    """None for a whole log; else where it ends early (`LogRecords.ends_early`)."""
 
 
 def replay(
@@ -256,7 +293,8 @@ def replay(
     """Recomputes every logged policy step and servo command with a fresh controller of the logged
     export and options (resets and servo ticks at their logged times), and renders the logged states
     into `video` (a frame every `every` policy steps)."""
-    header, cycles, _ = read_log(log_path)
+    records = read_log_records(log_path)
+    header, cycles = records.header, records.cycles
     folder = Path(header["export_dir"])
     if sha256(folder / CONTRACT) != header["contract_sha256"]:
         raise InvalidConfig(f"{log_path}: the export folder {folder} has changed since the log was written")
@@ -281,7 +319,7 @@ def replay(
                 max_servo = max(max_servo, _difference(command, logged))
     frames = [r for r in cycles if r["type"] == "cycle"][::every]
     out = _render(controller, frames, video, size, every) if video is not None else None
-    return ReplayResult(n, max_target, max_action, max_servo, out)
+    return ReplayResult(n, max_target, max_action, max_servo, out, records.ends_early)
 
 
 def _difference(a: Any, b: Any) -> float:
