@@ -143,3 +143,17 @@ def test_the_fetch_arm_as_gymnasium_robotics_ships_it_passes(tmp_path):
     assert "notice: " in out and "robot0:upperarm_roll_joint" in out
     assert "settling: meets the settling target" in out and "9/9 points" in out
     assert len(list(tmp_path.glob("fetch_*.png"))) == 9
+
+
+def test_a_robot_without_home_at_a_singular_zero_pose_is_told_to_give_home(robot_file):
+    robot_file.write_text(ROBOT_TOML.replace("home = [0.0, -0.5, 1.0]\n", ""))  # zero pose: arm straight
+    result = run_tsrl("robot", "check", str(robot_file), "--no-images")
+    assert result.returncode == 2 and result.stdout == ""
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith(
+        f"tsrl: error: {robot_file}: no `home`, so the arm starts at the model's zero pose"
+    )
+    assert "cannot move the TCP 5 cm along +x, +y, +z, -x, -y, -z" in line and "give `home`" in line
+    robot_file.write_text(ROBOT_TOML.replace("home = [0.0, -0.5, 1.0]", "home = [0.0, 0.0, 0.0]"))
+    result = run_tsrl("robot", "check", str(robot_file), "--no-images")  # the same pose, named: no hint
+    assert result.returncode == 2 and "no `home`" not in result.stderr

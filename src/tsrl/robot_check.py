@@ -26,7 +26,7 @@ from .ik import DlsSolver, IKOptions
 from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 from .robot_model import PreparedArm, RobotNotice, load_robot_model, robot_label
 from .robots import HOME_KEY, Robot, load_robot, reset_to_key
-from .settling import settle
+from .settling import STEP, settle
 from .taskmaps import Position, resolve_frame
 
 #: Half-extent [m] of the default reach box around the TCP's home (Fetch's target range).
@@ -114,6 +114,8 @@ def check_robot(
     lines.append(f"tcp: {robot.tcp} ({tcp.kind}), at home {_vec(tcp_home)} m")
     lines.append(f"base: {arm.base}")
     lines += [f"dropped: {d}" for d in arm.dropped]
+    if robot.home is None:
+        _check_zero_pose(model, robot, home, tcp_home, where)
     problems: list[str] = []
 
     settling = settle(model, robot.joints, robot.tcp, home, key, arm.servos)
@@ -185,6 +187,28 @@ class RobotCommand:
 
 #: The `tsrl robot` command (cli.COMMANDS).
 ROBOT_COMMANDS: dict[str, type] = {"robot": RobotCommand}
+
+
+def _check_zero_pose(
+    model: mujoco.MjModel, robot: Robot, zero: np.ndarray, tcp_zero: np.ndarray, where: str
+) -> None:
+    """A robot without `home` starts at the model's zero pose (qpos0). Raises InvalidConfig, naming the
+    missing `home` as the likely cause, unless the IK moves the TCP settling.STEP (5 cm) from there
+    along each world axis, both ways (the settling check's steps, none skipped)."""
+    moves = STEP * np.vstack([np.eye(3), -np.eye(3)])
+    moved = reach_box(model, robot, zero, None, tcp_zero + moves)
+    if moved.converged.all():
+        return
+    failed = ", ".join(axis for axis, ok in zip(_AXES, moved.converged, strict=True) if not ok)
+    raise InvalidConfig(
+        f"{where}: no `home`, so the arm starts at the model's zero pose {_vec(zero)}, from which the IK "
+        f"cannot move the TCP {STEP * 100:g} cm along {failed} (largest residual {moved.residual.max():.2g} m): "
+        "likely a singular pose (a straight or folded arm); give `home`, a keyframe's name or one value "
+        "per joint (e.g. the elbow bent)"
+    )
+
+
+_AXES = ("+x", "+y", "+z", "-x", "-y", "-z")
 
 
 def _home_key(model: mujoco.MjModel, robot: Robot) -> int | None:
