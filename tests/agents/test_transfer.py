@@ -121,7 +121,7 @@ def test_success_is_counted_against_the_true_goal_under_a_goal_offset():
 
 # -- sweeps ----------------------------------------------------------------------------------------
 def test_a_sweep_sets_its_key_and_nothing_else():
-    task = base_task("tsrl/UR5eReach-v0")
+    task = base_task("tsrl/UR5ePickPlace-v0")  # with an object: every key applies
     for key in PERTURB_KEYS:
         value = 2.0 if key in (*RANDOMIZE_SCALES, "joint_damping", "action_latency") else 0.01
         r = perturbed(task, key, value).randomize
@@ -151,6 +151,8 @@ def test_sweep_values_are_evaluated_on_the_same_episodes(run):
         ("servo_gain=1,x", "'x' is not a number"),
         ("action_latency=0.5", "accepted: whole control periods"),
         ("servo_gain=1,1", "lists a value more than once"),
+        ("servo_gain=0", "servo_gain = 0; accepted: values > 0"),  # a scale
+        ("object_friction=-1", "object_friction = -1; accepted: values > 0"),
     ],
 )
 def test_bad_perturbations_are_one_line(text, expected):
@@ -164,13 +166,13 @@ def test_bad_perturbations_are_one_line(text, expected):
     [
         ("action_latency", 50, "randomize.action_latency = [50, 50]; accepted: 0 to 49"),
         ("observation_noise", 0.2, f"accepted: 0 to {RANDOMIZE_MAGNITUDES['observation_noise']:g}"),
-        ("servo_gain", 0, "accepted: scales 0 < low <= high"),
+        ("tcp_offset", 0.2, f"accepted: 0 to {RANDOMIZE_MAGNITUDES['tcp_offset']:g}"),
     ],
 )
 def test_magnitudes_out_of_range_are_one_line_naming_the_key(key, value, expected):
     with pytest.raises(InvalidConfig) as err:
         sweep(eval_task(tiny()), parse_perturb(f"{key}={value}"))
-    assert expected in _one_line(err) and f"--perturb {key}={value:g}" in str(err.value)
+    assert expected in _one_line(err) and f"perturbation {key}={value:g}" in str(err.value)
 
 
 # -- --init-from -----------------------------------------------------------------------------------

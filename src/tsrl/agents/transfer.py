@@ -48,8 +48,9 @@ class Perturbation:
         for v in self.values:
             if not is_number(v) or not math.isfinite(v):
                 raise InvalidConfig(f"perturbation {self.key} = {v!r}; accepted: finite numbers")
-            if v < 0:
-                raise InvalidConfig(f"perturbation {self.key} = {v:g}; accepted: values >= 0")
+            if v < 0 or (v == 0 and self.key in RANDOMIZE_SCALES):  # a scale of 0 removes the thing
+                least = "> 0" if self.key in RANDOMIZE_SCALES else ">= 0"
+                raise InvalidConfig(f"perturbation {self.key} = {v:g}; accepted: values {least}")
             if self.key == "action_latency" and v != int(v):
                 raise InvalidConfig(f"perturbation action_latency = {v:g}; accepted: whole control periods")
         if len(set(self.values)) < len(self.values):
@@ -117,7 +118,7 @@ def perturbed(task: Task, key: str, value: float) -> Task:
     try:
         return dataclasses.replace(task, randomize=dataclasses.replace(task.randomize, **{key: setting}))
     except InvalidConfig as err:
-        raise InvalidConfig(f"--perturb {key}={value:g} on {task.name}: {err}") from None
+        raise InvalidConfig(f"perturbation {key}={value:g} on {task.name}: {err}") from None
 
 
 @dataclass(frozen=True)
@@ -161,15 +162,20 @@ def check_layout(cfg: TrainConfig, target: EvalTask) -> None:
 
 def check_run_layouts(trained: TrainConfig, other: TrainConfig) -> None:
     """Raises InvalidConfig, as check_layout, unless the envs of two runs (each with its own observation
-    and action) share one layout."""
+    and action) share one layout; each is named with its observation and action, which tell two runs
+    on the same task apart."""
     _check(
         trained.gym_id,
         trained.env_kwargs,
-        _name(trained.env_id),
+        _run_name(trained),
         other.gym_id,
         other.env_kwargs,
-        _name(other.env_id),
+        _run_name(other),
     )
+
+
+def _run_name(cfg: TrainConfig) -> str:
+    return f"{_name(cfg.env_id)} (observation {cfg.obs}, action {cfg.action})"
 
 
 def _check(

@@ -228,6 +228,15 @@ class Randomize:
         return (0, r) if isinstance(r, int) else r
 
 
+#: Upper bounds on the counts and sizes a task file sets: past them an evaluation would run for
+#: days or an observation grow without end, so they are refused when the file loads.
+MAX_EPISODE_STEPS = 10_000  # 400 s at 25 Hz
+MAX_PREVIOUS_ACTIONS = 100  # observed actions (a history of 4 s at 25 Hz)
+MAX_OBJECTS = 32  # [[objects]] and [[fixtures]] tables each
+MAX_CONTROL_DT = 1.0  # s
+MAX_POSITION_TOLERANCE = 10.0  # m, success.position
+MAX_ORIENTATION_TOLERANCE = 180.0  # deg, success.orientation
+
 #: Randomize's scale keys, and its magnitude keys with their largest accepted values.
 RANDOMIZE_SCALES = ("object_mass", "object_size", "object_friction", "servo_gain")
 RANDOMIZE_MAGNITUDES = {
@@ -375,7 +384,25 @@ def load_task(task: Task | str | Path) -> Task:
 
 # -- validation without a model ----------------------------------------------------------------------
 def _validate(task: Task) -> None:
+    _at_most("episode_steps", task.episode_steps, MAX_EPISODE_STEPS, "control steps")
+    _at_most("control_dt", task.control_dt, MAX_CONTROL_DT, "s")
+    _at_most("success.position", task.success.position, MAX_POSITION_TOLERANCE, "m")
+    _at_most("success.orientation", task.success.orientation, MAX_ORIENTATION_TOLERANCE, "deg")
+    for key, tables in (("objects", task.objects), ("fixtures", task.fixtures)):
+        if len(tables) > MAX_OBJECTS:
+            raise InvalidConfig(f"{len(tables)} [[{key}]] tables; accepted: at most {MAX_OBJECTS}")
     _validate_randomize(task.randomize, task.episode_steps)
+    for key in ("object_mass", "object_size", "object_friction"):
+        if getattr(task.randomize, key) != (1.0, 1.0) and not task.objects:
+            raise InvalidConfig(
+                f"randomize.{key} = {list(getattr(task.randomize, key))} scales objects but the task has "
+                "no [[objects]]; accepted without objects: [1, 1] (or leave the key out)"
+            )
+    for obj in task.objects:
+        if not obj.min_separation >= 0:
+            raise InvalidConfig(
+                f"objects: min_separation = {obj.min_separation:g} m of {obj.body!r}; accepted: >= 0 m"
+            )
     if task.robot not in ROBOTS and not task.robot.endswith(".toml"):
         raise InvalidConfig(f"robot = {task.robot!r}; accepted: {', '.join(ROBOTS)} or a robot .toml file")
     if isinstance(task.action, str) and task.action not in ACTION_PRESETS:
@@ -387,15 +414,12 @@ def _validate(task: Task) -> None:
             f"solver = {task.solver!r}; accepted: the built-in task whose solver acts in this one: "
             f"{', '.join(BUILTIN_TASKS)}"
         )
-    check_positive("episode_steps", task.episode_steps)
-    if isinstance(task.previous_actions, bool) or not 0 <= task.previous_actions < task.episode_steps:
+    most = min(task.episode_steps - 1, MAX_PREVIOUS_ACTIONS)
+    if isinstance(task.previous_actions, bool) or not 0 <= task.previous_actions <= most:
         raise InvalidConfig(
-            f"previous_actions = {task.previous_actions!r}; accepted: an integer from 0 to episode_steps - 1 "
-            f"= {task.episode_steps - 1}"
+            f"previous_actions = {task.previous_actions!r}; accepted: an integer from 0 to {most} "
+            f"(episode_steps - 1, at most {MAX_PREVIOUS_ACTIONS})"
         )
-    check_positive("control_dt", task.control_dt)
-    check_positive("success.position", task.success.position)
-    check_positive("success.orientation", task.success.orientation)
     if not 0 <= task.start_noise < math.pi:
         raise InvalidConfig(f"start_noise must be in [0, pi) rad; got {task.start_noise}")
     p = task.goal.position
@@ -427,6 +451,13 @@ def _validate(task: Task) -> None:
         raise InvalidConfig(
             f"obstacle: need 0 < fraction_low <= fraction_high < 1 and 0 < radius[0] <= radius[1]; got {s}"
         )
+
+
+def _at_most(key: str, value: float, most: float, unit: str) -> None:
+    """Refuses `value` unless it is a number in (0, most] (its unit named in the error)."""
+    check_positive(key, value)
+    if value > most:
+        raise InvalidConfig(f"{key} = {value}; accepted: > 0 and at most {most:,g} {unit}")
 
 
 def _validate_randomize(r: Randomize, episode_steps: int) -> None:
