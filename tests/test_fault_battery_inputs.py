@@ -1,0 +1,74 @@
+"""The bad-input battery's task, robot and demonstration files (issue 53; signals and run folders are
+in test_fault_battery.py): each input a new user might try is refused before any work starts with one
+line (exit code 2) naming the file, the key, the value and what is accepted. Tiny budgets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from cli_runner import run_tsrl
+
+from tsrl.envs.tasks import builtin_task_path
+
+REACH = builtin_task_path("UR5eReach-v0").read_text()
+PICK = builtin_task_path("UR5ePickPlace-v0").read_text()
+
+
+def _refused(done, *words: str) -> str:
+    """The one line of a refusal (exit code 2), checked to hold each of `words`."""
+    assert done.returncode == 2, (done.returncode, done.stdout[-2000:], done.stderr[-2000:])
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]
+
+
+def _task(tmp_path: Path, text: str, name: str = "bad.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# -- task files: counts and sizes have upper bounds; bad values are one line ----------------------
+@pytest.mark.parametrize(
+    ("source", "old", "new", "words"),
+    [
+        (REACH, "episode_steps = 50", "episode_steps = 100000000000", ["episode_steps", "at most 10,000"]),
+        (REACH, "episode_steps = 50", "episode_steps = 0", ["episode_steps", "> 0"]),
+        (REACH, "control_dt = 0.04", "control_dt = 100000.0", ["control_dt", "at most 1 s"]),
+        (REACH, "position = 0.05", "position = 1e300", ["success.position", "1e+300", "at most 10 m"]),
+        (REACH, "episode_steps = 50", "episode_steps = 500\nprevious_actions = 400", ["previous_actions", "to 100"]),
+        (PICK, 'body = "box"', 'body = "box"\nmin_separation = -0.1', ["min_separation", "-0.1", ">= 0"]),
+        (REACH, 'reward = "0/1"', 'reward = "0/1"\n\n[randomize]\nobject_mass = [0.5, 2.0]', ["object_mass", "no [[objects]]"]),
+    ],
+)  # fmt: skip
+def test_a_bad_task_file_value_is_one_line_before_training(tmp_path, source, old, new, words):
+    assert old in source
+    path = _task(tmp_path, source.replace(old, new, 1))
+    out = tmp_path / "out"
+    _refused(
+        run_tsrl("train", "--task", str(path), "--total-timesteps", "100", "--out-dir", str(out)),
+        str(path),
+        *words,
+    )
+    assert not out.exists()
+
+
+def test_too_many_objects_say_the_bound(tmp_path):
+    tables = "".join(
+        '\n[[objects]]\nbody = "box"\ncenter = [0, 0, 0]\nhalf_extent = [0, 0, 0]\n' for _ in range(33)
+    )
+    path = _task(tmp_path, PICK + tables)
+    _refused(run_tsrl("train", "--task", str(path), "--out-dir", str(tmp_path)), "[[objects]]", "at most 32")
+
+
+@pytest.mark.parametrize("value", ["-1", "0"])
+def test_a_scale_perturbation_of_zero_or_less_says_the_same_bound(value):
+    from tsrl.agents.transfer import parse_perturb
+    from tsrl.exceptions import InvalidConfig
+
+    with pytest.raises(InvalidConfig) as err:
+        parse_perturb(f"object_friction={value}")
+    assert f"object_friction = {value}; accepted: values > 0" in str(err.value)
