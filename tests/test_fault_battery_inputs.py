@@ -72,3 +72,39 @@ def test_a_scale_perturbation_of_zero_or_less_says_the_same_bound(value):
     with pytest.raises(InvalidConfig) as err:
         parse_perturb(f"object_friction={value}")
     assert f"object_friction = {value}; accepted: values > 0" in str(err.value)
+
+
+# -- frame = "base" follows the robot file's `base` key -------------------------------------------
+def _own_arm_in_base_frame(tmp_path: Path, base: str | None) -> Path:
+    """The docs' ten-line arm (its moving first body is named `base`) on a task with frame = "base"."""
+    from own_task import write_task
+
+    task = write_task(tmp_path)
+    task.write_text(task.read_text().replace('scene = "arm.xml"', 'scene = "arm.xml"\nframe = "base"'))
+    if base is not None:
+        robot = tmp_path / "arm.toml"
+        robot.write_text(robot.read_text() + f'base = "{base}"\n')
+    return task
+
+
+def test_frame_base_uses_the_robot_files_base_key_over_a_moving_body_named_base(tmp_path):
+    import gymnasium as gym
+    import numpy as np
+
+    from tsrl.envs import TASK_ENV_ID
+
+    env = gym.make(TASK_ENV_ID, task=str(_own_arm_in_base_frame(tmp_path, "world")), max_episode_steps=5)
+    u = env.unwrapped
+    env.reset(seed=0)
+    site = u.model.site("base").id
+    assert u.model.site_bodyid[site] == 0 and np.allclose(u.data.site_xpos[site], 0)  # at the world's origin
+    assert u.model.body("base").id > 0  # the arm's own body `base` is still there
+
+
+def test_frame_base_on_a_moving_base_names_the_robot_files_base_key(tmp_path):
+    task = _own_arm_in_base_frame(tmp_path, None)
+    _refused(
+        run_tsrl("train", "--task", str(task), "--out-dir", str(tmp_path / "out")),
+        "moves with a joint",
+        "`base` key",
+    )

@@ -2,8 +2,10 @@
 
 Presets and task files name the TCP `tcp` and the robot's base `base`. A model whose robot file names
 another TCP frame gets a site `tcp` at it (same body, same pose); a model without a frame `base` gets
-a site `base` at the robot's base body (`tsrl.robot_model.arm_base`). So `fs1`, `taskspace` and every
-built-in task's maps work on any arm.
+a site `base` at the robot's base body (`tsrl.robot_model.arm_base`); so does a model whose body
+`base` is not the one the robot file's `base` key names (sites come first where maps resolve a name,
+so `base` then reads the robot file's base). So `fs1`, `taskspace` and every built-in task's maps
+work on any arm.
 
 A task with `frame = "base"` is expressed in the robot's base frame: every top-level element of the
 scene moves into one frame at the inverse of the base's world pose, so that the base stands at the
@@ -44,9 +46,16 @@ def add_frame_aliases(spec: mujoco.MjSpec, probe: mujoco.MjModel, robot: Robot, 
         else:
             body, pos, quat = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, robot.tcp), np.zeros(3), None
         _add_site(spec, probe, body, TCP, pos, quat)
-    if _frame(probe, BASE) is None:
-        body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, arm_base(probe, robot))
-        _add_site(spec, probe, max(body, 0), BASE, np.zeros(3), None)
+    frame = _frame(probe, BASE)
+    body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, arm_base(probe, robot))
+    if frame is None or (robot.base is not None and frame[0] == "body" and frame[1] != body):
+        _add_site(spec, probe, max(body, 0), BASE, np.zeros(3), None)  # shadows another body `base`
+    elif robot.base is not None and frame[0] == "site" and int(probe.site_bodyid[frame[1]]) != body:
+        other = probe.body(int(probe.site_bodyid[frame[1]])).name
+        raise InvalidConfig(
+            f"{where}: base = {robot.base!r}, but the model has a site named {BASE!r} on body {other!r}, "
+            f"which presets read as the base; rename that site, or give base = {other!r}"
+        )
 
 
 def express_in_base(spec: mujoco.MjSpec, where: str) -> None:
@@ -66,7 +75,8 @@ def express_in_base(spec: mujoco.MjSpec, where: str) -> None:
         body, pos, rot = index, data.xpos[index], data.xmat[index]
     if body_moves(probe, body):
         raise InvalidConfig(
-            f'{where}: frame = "base": the robot\'s base moves with a joint; it must be fixed'
+            f'{where}: frame = "base": the robot\'s base (body {probe.body(body).name!r}) moves with '
+            "a joint; accepted: a fixed base (name it with the robot file's `base` key)"
         )
     R = rot.reshape(3, 3)
     if R[2, 2] < 1.0 - 1e-9:
