@@ -37,7 +37,7 @@ def test_no_command_leaves_the_limits_under_injected_faults(ur5e_reach):
     backend = MujocoBackend(ur5e_reach, seed=0)
     controller = Controller.from_export(ur5e_reach, ControllerOptions(servo_period=backend.period))
     jumps = set(rng.choice(np.arange(1, CYCLES), 300, replace=False).tolist())
-    controller._ik = JumpingIK(controller._ik, jumps)
+    controller.interface._ik = JumpingIK(controller.interface._ik, jumps)  # the IK step the interface takes
     limiter = controller.limiter
     h, T = backend.period, controller.control_period
     ticks = round(T / h)

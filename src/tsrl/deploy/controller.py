@@ -1,8 +1,9 @@
 """The deployment runtime: an exported policy driving joint targets, behind the safety layer.
 
 `Controller.from_export(DIR)` verifies the folder (tsrl.deploy.contract) and builds, from its copies,
-the run's own environment pieces (tsrl.deploy.exported): the step's task maps, the goal, the action
-map and the IK map, evaluated on a MjData of the controller's own with kinematics only (no physics).
+the run's task-space interface (tsrl.envs.interface, the one `TaskEnv.step` calls; tsrl.deploy.exported):
+the step's task maps, the goal, the action map with its tool and the IK, evaluated on a MjData of the
+controller's own with kinematics only (no physics).
 One policy step, `act(q, qd, objects, goal, t=...)`:
 
 1. guards: a joint reading or object pose with NaN/inf, a missing object, a state older than
@@ -13,8 +14,8 @@ One policy step, `act(q, qd, objects, goal, t=...)`:
    after them, newest first (zeros after `reset`; a held step applies none and keeps them);
 3. the policy (onnxruntime; normaliser inside); a non-finite action: hold and report; the action
    clipped to [-1, 1], then the optional first-order filter;
-4. the IK step (the env's own: `ActionMap.ik_target`, one damped least-squares step with the run's
-   IK options), the TCP target within the task's workspace box;
+4. the interface's command (the env's own: `ActionMap.ik_target`, the IK step with the run's IK
+   options, the tool command), the TCP target within the task's workspace box;
 5. the joint limiter (tsrl.deploy.safety): the target within the joint limits (less a margin); the
    servo-rate commands from `interpolate(t)` within the speed and acceleration limits.
 
@@ -34,13 +35,12 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..envs import TaskEnv
-from ..envs.observations import push_previous_action
+from ..envs.interface import TaskInterface
+from ..envs.randomization import Randomizer
 from ..exceptions import InvalidConfig
-from ..ik import DlsSolver, IKOptions
 from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
 from .contract import POLICY, read_contract
-from .exported import exported_env
+from .exported import exported_interface
 from .policy import OnnxPolicy
 from .safety import JOINT_LIMIT, JointLimiter
 
@@ -119,10 +119,13 @@ class Controller:
     Build it with `Controller.from_export(DIR)`.
     """
 
-    def __init__(self, folder: Path, contract: dict[str, Any], env: TaskEnv, options: ControllerOptions):
+    def __init__(
+        self, folder: Path, contract: dict[str, Any], interface: TaskInterface, options: ControllerOptions
+    ):
         self.folder, self.contract, self.options = folder, contract, options
-        self.env = env
-        model = self.model = env.model
+        #: The run's task-space interface (step plan, goal, action map and tool, previous actions, IK).
+        self.interface = interface
+        model = self.model = interface.model
         robot = contract["robot"]
         #: Joint names in the order of every joint vector the controller reads and writes.
         self.joint_names: tuple[str, ...] = tuple(robot["joints"])
@@ -131,20 +134,15 @@ class Controller:
         self.servo_period: float = float(options.servo_period or model.opt.timestep)
         self.max_state_age = options.max_state_age or self.control_period / 2
         self.data = mujoco.MjData(model)
-        env.bound_robot.reset_to_home(model, self.data)
+        interface.bound_robot.reset_to_home(model, self.data)
         self._qpos = arm_qpos_indices(model, self.joint_names)
         self._dofs = arm_dof_indices(model, self.joint_names)
         self._objects: dict[str, tuple[int, int]] = {}
-        for obj in env.task.objects:
+        for obj in interface.task.objects:
             joint = model.body_jntadr[name_to_id(model, "body", obj.body)]
             self._objects[obj.body] = (int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint]))
-        self._suction_ctrl = env.bound_robot.suction_ctrl if contract["action"]["suction"] else None
         policy = contract["policy"]
         self.policy = OnnxPolicy(folder / POLICY, tuple(i["name"] for i in policy["inputs"]))
-        self._ik = None
-        if contract["ik"] is not None and env.action_map.ik_map is not None:
-            options_ = IKOptions(**contract["ik"]["options"])
-            self._ik = DlsSolver(model, env.action_map.ik_map, self.joint_names, options_)
         limits = np.asarray(robot["joint_limits"], dtype=np.float64)
         unlimited = [
             j for j, (lo, hi) in zip(self.joint_names, limits) if not (np.isfinite(lo) and np.isfinite(hi))
@@ -172,20 +170,19 @@ class Controller:
         )
         # The TCP position part: its action columns, IK-target rows and step, to report workspace clips.
         self._tcp_part: tuple[slice, slice, float] | None = None
-        if ws and env.action_map.ik_map is not None:
+        ik_map = interface.action_map.ik_map
+        if ws and ik_map is not None:
             part = contract["action"]["parts"][ws["part"]]
             if part.get("step") is not None:  # a relative part: what the policy asked is y + step a
-                rows = list(env.action_map.ik_map.slices.values())[ws["part"]]
+                rows = list(ik_map.slices.values())[ws["part"]]
                 self._tcp_part = (slice(*part["columns"]), rows, float(part["step"]))
         self._alpha = math.exp(-self.control_period / options.action_filter) if options.action_filter else 0.0
         self._filtered: np.ndarray | None = None
-        #: The last applied actions (Task.previous_actions, k), newest first: the observation's last rows.
-        self._previous_actions = np.zeros((env.task.previous_actions, env.action_map.dim))
-        self._goal = np.zeros(env.goal.dim)
+        self._goal = np.zeros(interface.goal.dim)
         self._goal_set = False
-        self._suction = False
+        self._tool = self._tool_at_reset()
         self._last_stamp: float | None = None
-        self._goal_sampler: TaskEnv | None = None
+        self._goal_sampler: tuple[Randomizer, mujoco.MjData] | None = None
         self.last: Cycle | None = None
 
     @classmethod
@@ -194,19 +191,19 @@ class Controller:
         are checked (ContractError: one line naming the file and what was expected)."""
         folder = Path(folder)
         contract = read_contract(folder)
-        return cls(folder, contract, exported_env(folder, contract), options or ControllerOptions())
+        return cls(folder, contract, exported_interface(folder, contract), options or ControllerOptions())
 
     # -- episode ----------------------------------------------------------------------------------
     def reset(self, joint_positions: ArrayLike, t: float, goal: ArrayLike | None = None) -> None:
         """Starts an episode at rest at the measured joint positions (n,) at time t [s], optionally with
-        its goal (g,); the filter, the previous actions and the suction command are reset."""
+        its goal (g,); the filter, the previous actions and the tool command are reset."""
         q = self._joints("joint_positions", joint_positions)
         if not np.isfinite(q).all():
             raise InvalidConfig(f"reset: joint positions must be finite; got {q.tolist()}")
         self.limiter.reset(q, t)
         self._filtered = None
-        self._previous_actions[:] = 0.0
-        self._suction = False
+        self.interface.reset()
+        self._tool = self._tool_at_reset()
         self._last_stamp = None
         if goal is not None:
             self.set_goal(goal)
@@ -215,8 +212,8 @@ class Controller:
         """The desired goal (g,) as the environment emits it (positions [m] in the world frame, then
         any orientation (w, x, y, z)); the goal's penalty columns, if any, may be left out."""
         g = np.asarray(goal, dtype=np.float64).reshape(-1)
-        dim = self.env.goal.dim
-        penalties = len(self.env.goal.penalties)
+        dim = self.interface.goal.dim
+        penalties = len(self.interface.goal.penalties)
         if g.size == dim - penalties:
             g = np.concatenate([g, np.zeros(penalties)])  # a penalty's desired value is 0
         if g.shape != (dim,):
@@ -242,11 +239,17 @@ class Controller:
 
     def sample_goal(self, seed: int) -> np.ndarray:
         """A goal (g,) drawn as the task draws it at reset with this seed (the same as `tsrl evaluate`'s
-        episode with that seed)."""
+        episode with that seed: the task's Randomizer with the generator gymnasium seeds `reset` with)."""
+        from gymnasium.utils.seeding import np_random
+
+        interface, model = self.interface, self.model
         if self._goal_sampler is None:
-            self._goal_sampler = exported_env(self.folder, self.contract)
-        obs, _ = self._goal_sampler.reset(seed=seed)
-        return obs["desired_goal"].copy()
+            randomizer = Randomizer(model, interface.task, interface.bound_robot, interface.goal)
+            self._goal_sampler = (randomizer, mujoco.MjData(model))
+        randomizer, data = self._goal_sampler
+        interface.bound_robot.reset_to_home(model, data)
+        randomizer.randomize(data, np_random(seed)[0])
+        return interface.observe(model, data)[2].copy()
 
     # -- one policy step ------------------------------------------------------------------------------
     def act(
@@ -286,15 +289,14 @@ class Controller:
         faults = self._guards(cycle)
         if faults:
             return self._hold(cycle, faults)
-        observation, achieved, desired = self._features(q, qd, objs)
-        if self._previous_actions.size:
-            observation = np.concatenate([observation, self._previous_actions.ravel()])
+        rows, achieved, desired = self._features(q, qd, objs)
+        observation = self.interface.observation(rows)
         cycle.observation, cycle.achieved_goal, cycle.desired_goal = (
             observation.copy(),
             achieved.copy(),
             desired.copy(),
         )
-        cycle.info = self.env.goal.outcome(achieved, desired)[1]
+        cycle.info = self.interface.goal.outcome(achieved, desired)[1]
         action = self.policy({"observation": observation, "achieved_goal": achieved, "desired_goal": desired})
         cycle.action = action.copy()
         if not np.isfinite(action).all():
@@ -306,15 +308,13 @@ class Controller:
             )
             a = self._filtered
         cycle.applied_action = a.copy()
-        push_previous_action(self._previous_actions, a)
+        self.interface.remember(a)
         found: list[str] = []
         if self.workspace is not None and not self._goal_within_workspace():
             found.append(GOAL_OUTSIDE_WORKSPACE)
-        q_ik = self._ik_step(q, a, cycle, found)
+        q_ik = self._command(q, a, cycle, found)
         cycle.q_ik = q_ik.copy()
-        if self._suction_ctrl is not None:
-            self._suction = bool(a[-1] > 0)
-        cycle.suction = self._suction
+        cycle.suction = self.suction
         q_target, clipped = self.limiter.set_target(q_ik, t)
         if clipped:
             found.append(JOINT_LIMIT)
@@ -339,7 +339,7 @@ class Controller:
         if faults:
             return {"is_success": False, "faults": faults}
         _, achieved, desired = self._features(q, qd, objs)
-        return self.env.goal.outcome(achieved, desired)[1]
+        return self.interface.goal.outcome(achieved, desired)[1]
 
     def interpolate(self, t: float) -> np.ndarray:
         """The servo command (n,) at time t: one servo period further along toward the last target,
@@ -348,8 +348,25 @@ class Controller:
 
     @property
     def suction(self) -> bool:
-        """The suction command (on) of the last policy step."""
-        return self._suction
+        """The suction command (on) of the last policy step (False without a suction cup)."""
+        return bool(self.contract["action"]["suction"]) and self._tool == 1.0
+
+    @property
+    def tool(self) -> float | None:
+        """The tool actuator's command of the last policy step (TaskInterface.tool: suction 1/0, a
+        gripper's target width [m]), or None for a task without a tool dimension."""
+        return self._tool
+
+    def _tool_at_reset(self) -> float | None:
+        """The tool command an episode starts with: suction off, a gripper's servo as at home."""
+        ctrl = self.interface.tool_ctrl
+        if ctrl is None:
+            return None
+        if self.contract["action"]["suction"]:
+            return 0.0
+        data = mujoco.MjData(self.model)
+        self.interface.bound_robot.reset_to_home(self.model, data)
+        return float(data.ctrl[ctrl])
 
     # -- internals ------------------------------------------------------------------------------------
     def _joints(self, name: str, value: ArrayLike) -> np.ndarray:
@@ -381,7 +398,7 @@ class Controller:
 
     def _hold(self, cycle: Cycle, faults: tuple[str, ...]) -> np.ndarray:
         cycle.q_target = self.limiter.hold(cycle.t)
-        cycle.suction = self._suction  # the suction command stays as it was
+        cycle.suction = self.suction  # the tool command stays as it was
         cycle.faults = faults
         return cycle.q_target.copy()
 
@@ -391,9 +408,7 @@ class Controller:
         """The env's observation, achieved and desired goal (views) of a measured state: the state
         written into the controller's MjData, kinematics, every step map evaluated once."""
         self._write_state(q, qd, objects)
-        plan = self.env.plan
-        plan.evaluate(self.model, self.data)
-        return plan.views
+        return self.interface.observe(self.model, self.data)
 
     def _write_state(self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray]) -> None:
         data = self.data
@@ -403,35 +418,35 @@ class Controller:
             pose = objects[body]
             data.qpos[qadr : qadr + 7] = pose[:7]
             data.qvel[dadr : dadr + 6] = pose[7:] if pose.size == 13 else 0.0
-        self.env.goal.place(data, self._goal)
-        if self._suction_ctrl is not None:
-            data.ctrl[self._suction_ctrl] = 1.0 if self._suction else 0.0
+        self.interface.goal.place(data, self._goal)
+        if self._tool is not None:
+            data.ctrl[self.interface.tool_ctrl] = self._tool
 
     def _goal_within_workspace(self) -> bool:
         assert self.workspace is not None
         low, high = self.workspace
-        for part in self.env.goal.parts:
+        for part in self.interface.goal.parts:
             p = self._goal[part.position]
             if (p < low).any() or (p > high).any():
                 return False
         return True
 
-    def _ik_step(self, q: np.ndarray, a: np.ndarray, cycle: Cycle, found: list[str]) -> np.ndarray:
-        """The joint positions (n,) the env's step would command for action a at q."""
-        action_map = self.env.action_map
-        if self._ik is None:  # joint actions, as TaskEnv steps them
-            return action_map.joint_targets(q, a, self.env.bound_robot.joint_range)
-        value = self.env.plan.ik_value
+    def _command(self, q: np.ndarray, a: np.ndarray, cycle: Cycle, found: list[str]) -> np.ndarray:
+        """The joint positions (n,) the env's step commands for action a at q (the interface's), and
+        the tool command."""
+        command = self.interface.command(a, q, self.data)
+        self._tool = command.tool
+        target = command.ik_target
+        if target is None:  # joint actions
+            return command.q_target
+        value = self.interface.plan.ik_value
         assert value is not None
-        target = action_map.ik_target(a, value.y)
         if self._tcp_part is not None and self.workspace is not None:
             cols, rows, step = self._tcp_part
             asked = value.y[rows] + step * a[cols]
             low, high = self.workspace
             if (asked < low).any() or (asked > high).any():
                 found.append(WORKSPACE_CLIP)
-            rows_view = target[rows]  # ActionMap's bounds are the same box: a no-op, kept as the guarantee
-            np.minimum(np.maximum(rows_view, low, out=rows_view), high, out=rows_view)
+            # the IK target is within the box already: it is the action part's bounds (ActionMap)
         cycle.ik_target = target.copy()
-        q_next, _ = self._ik.step(q, value, target)
-        return q_next
+        return command.q_target

@@ -1,10 +1,10 @@
 """An export folder's task, built the way training built it, from the folder's own copies.
 
 The task is the folder's task.toml with its scene and robot replaced by the folder's model files and
-robot.toml, then `TaskEnv(task, obs=..., action=...)` with the run's observation and action (the
-contract's `task.env_kwargs`), exactly as `gym.make` built the training environment. The controller
-uses its maps, goal, action map and IK map; the MuJoCo backend uses one as its simulated world.
-Nothing here imports torch or stable-baselines3.
+robot.toml, with the run's observation and action (the contract's `task.env_kwargs`), exactly as
+`gym.make` built the training environment. The controller uses its task-space interface
+(`exported_interface`: step plan, goal, action map, IK); the MuJoCo backend uses a whole `TaskEnv`
+(`exported_env`) as its simulated world. Nothing here imports torch or stable-baselines3.
 """
 
 from __future__ import annotations
@@ -18,6 +18,11 @@ import mujoco
 import numpy as np
 
 from ..envs import TaskEnv, load_task
+from ..envs.interface import TaskInterface
+from ..envs.observations import OBS_PRESETS
+from ..envs.scenes import load_scene
+from ..envs.tasks import Task
+from ..robots import load_robot
 from .contract import ROBOT, TASK, ContractError
 
 #: The limits every contract records for each controlled joint.
@@ -27,18 +32,38 @@ LIMIT_KEYS = ("max_joint_speed", "max_joint_acceleration")
 def exported_env(folder: Path | str, contract: dict[str, Any], scene: Path | str | None = None) -> TaskEnv:
     """The run's environment from an export folder's copies (`scene`: another model file of the same
     arm instead of the exported scene, e.g. for a MuJoCo backend)."""
-    folder = Path(folder).resolve()
-    task_section = contract["task"]
-    task = load_task(folder / TASK)
-    scene_file = Path(scene).resolve() if scene is not None else folder / task_section["scene"]
-    task = dataclasses.replace(task, scene=str(scene_file), robot=str(folder / ROBOT))
-    kwargs = task_section["env_kwargs"]
+    task = _folder_task(folder, contract, scene)
+    kwargs = contract["task"]["env_kwargs"]
     env = TaskEnv(task, obs=kwargs.get("obs"), action=kwargs.get("action"))
     check_env_matches(env, contract)
     return env
 
 
-def check_env_matches(env: TaskEnv, contract: dict[str, Any]) -> None:
+def exported_interface(folder: Path | str, contract: dict[str, Any]) -> TaskInterface:
+    """The run's task-space interface (step plan, goal, action map, IK) on the export's own model, as
+    the training environment built it (its `ik_iterations` from the contract's IK options)."""
+    kwargs = contract["task"]["env_kwargs"]
+    task = _folder_task(folder, contract).with_overrides(kwargs.get("obs"), kwargs.get("action"), None)
+    model = load_scene(task)
+    robot = load_robot(task.robot_path).bind(model)
+    ik = contract.get("ik")
+    iterations = int(ik["options"]["max_iters"]) if ik is not None else 1
+    interface = TaskInterface(
+        task, model, robot, OBS_PRESETS.get(task.observation, task.observation), iterations
+    )
+    check_env_matches(interface, contract)
+    return interface
+
+
+def _folder_task(folder: Path | str, contract: dict[str, Any], scene: Path | str | None = None) -> Task:
+    """The folder's task.toml with its scene (or `scene`) and robot the folder's copies."""
+    folder = Path(folder).resolve()
+    task = load_task(folder / TASK)
+    scene_file = Path(scene).resolve() if scene is not None else folder / contract["task"]["scene"]
+    return dataclasses.replace(task, scene=str(scene_file), robot=str(folder / ROBOT))
+
+
+def check_env_matches(env: TaskEnv | TaskInterface, contract: dict[str, Any]) -> None:
     """The environment has the contract's joints, control period, observation, goal and action.
 
     Raises:

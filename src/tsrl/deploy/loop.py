@@ -341,9 +341,9 @@ def _render(
     from ..agents.evaluation import write_video
     from ..rendering import SceneRenderer
 
-    env = controller.env
-    model, data = env.model, mujoco.MjData(env.model)
-    env.bound_robot.reset_to_home(model, data)
+    model = controller.model
+    data = mujoco.MjData(model)
+    controller.interface.bound_robot.reset_to_home(model, data)
     frames = []
     with SceneRenderer(model, *size) as renderer:
         for frame_data in _states(controller, cycles, data):
@@ -364,6 +364,6 @@ def _states(controller: Controller, cycles: list[dict[str, Any]], data: Any) -> 
             pose = record["objects"].get(body)
             if pose is not None and np.isfinite(pose).all():
                 data.qpos[qadr : qadr + 7] = pose[:7]
-        controller.env.goal.place(data, np.asarray(record["goal"], dtype=np.float64))
+        controller.interface.goal.place(data, np.asarray(record["goal"], dtype=np.float64))
         mujoco.mj_kinematics(model, data)
         yield data

@@ -1,8 +1,9 @@
 """TaskEnv: the one goal-conditioned MuJoCo environment that builds any task (envs/tasks.py).
 
-One step (the Gymnasium-Robotics skeleton): check the action, the action map sets the IK target,
-IK -> servo targets, physics substeps, the task maps evaluated once (their values and Jacobians
-reused for observation, goals, reward and the next step's IK), `compute_reward`.
+One step (the Gymnasium-Robotics skeleton): check the action, the task-space interface
+(envs/interface.py, the deployment controller's too) turns it into servo targets and the tool
+command (action map, IK), physics substeps, the interface's task maps evaluated once (their values
+and Jacobians reused for observation, goals, reward and the next step's IK), `compute_reward`.
 """
 
 from __future__ import annotations
@@ -22,12 +23,11 @@ from gymnasium.utils import EzPickle
 from numpy.typing import ArrayLike
 
 from ..exceptions import InvalidAction, InvalidConfig, TsrlError
-from ..ik import DlsSolver, IKOptions
 from ..robots import Robot, load_robot
 from ..taskmaps import Stack, resolve_frame
-from .actions import ActionMap, action_mode
-from .goals import Goal
-from .observations import OBS_PRESETS, PREVIOUS_ACTIONS, StepPlan, push_previous_action
+from .actions import action_mode
+from .interface import TaskInterface
+from .observations import OBS_PRESETS, PREVIOUS_ACTIONS
 from .perturbations import Perturber
 from .randomization import Randomizer
 from .scenes import load_scene
@@ -122,7 +122,6 @@ class TaskEnv(gym.Env, EzPickle):
         task = self.task
         self.model = load_scene(task)
         self.data = mujoco.MjData(self.model)
-        self._ik_data = mujoco.MjData(self.model)  # IK workspace: the physics state is never touched by it
         self.n_substeps = round(task.control_dt / self.model.opt.timestep)
         if self.n_substeps < 1 or not math.isclose(
             self.n_substeps * self.model.opt.timestep, task.control_dt
@@ -133,46 +132,26 @@ class TaskEnv(gym.Env, EzPickle):
             )
         self.bound_robot = load_robot(task.robot_path).bind(self.model)
         self.robot: Robot = self.bound_robot.robot
-        self.action_map = ActionMap(task.action_spec, self.model, len(self.robot.joints))
-        if task.action_spec.suction and self.bound_robot.suction_ctrl is None:
-            raise InvalidConfig(
-                f"the task's action has suction, but robot {self.robot.name!r} has no suction actuator"
-            )
-        self._suction_ctrl = self.bound_robot.suction_ctrl if task.action_spec.suction else None
-        # ctrl index, width at a = -1, width per unit, whether the dimension only opens or closes
-        self._gripper: tuple[int, float, float, bool] | None = None
-        if task.action_spec.gripper:
-            g = self.bound_robot.gripper_ctrl
-            if g is None:
-                raise InvalidConfig(
-                    f"the task's action has a gripper dimension, but robot {self.robot.name!r} has no gripper"
-                )
-            low, high = self.model.actuator_ctrlrange[g]
-            self._gripper = (g, float(low), float(high - low) / 2, task.action_spec.gripper_open_close)
-        self.goal = Goal(task, self.model, self.robot.joints)
-        self.plan = StepPlan(self.model, self.obs_spec, self.goal, self.action_map.ik_map, self.robot.joints)
-        self.goal.check_relabelable(self.plan.obs_map)
+        #: The task-space interface: step plan, action map and tool, previous actions, IK.
+        self.interface = TaskInterface(task, self.model, self.bound_robot, self.obs_spec, self.ik_iterations)
+        self.action_map = self.interface.action_map
+        self.goal = self.interface.goal
+        self.plan = self.interface.plan
+        self.ik_options = self.interface.ik_options
         self.randomizer = Randomizer(self.model, task, self.bound_robot, self.goal)
         self._perturb = (
             Perturber(self.model, task, self.bound_robot, self.goal, self.plan.obs_map, self.n_substeps)
             if task.randomize.active
             else None
         )
-        ik_map = self.action_map.ik_map
-        #: The IK's options: a single step per period, or a local solve of ik_iterations steps, with the
-        #: redundant arm's null-space posture.
-        self.ik_options = IKOptions(
-            max_iters=self.ik_iterations, restarts=0, posture=self.bound_robot.posture
-        )
-        self._ik = DlsSolver(self.model, ik_map, self.robot.joints, self.ik_options) if ik_map else None
         # Live views of data.qpos, data.ctrl and MuJoCo's warning counters (mjNWARNING,).
         self._qpos, self._ctrl = self.data.qpos, self.data.ctrl
         self._warning_counts = self.data.warning.number
         self._steps = 0
-        #: The policy's last `task.previous_actions` actions (n, k), newest first: observation rows.
-        self._previous_actions = np.zeros((task.previous_actions, self.action_map.dim))
+        self._previous_actions = self.interface.previous_actions  # (n, k), newest first
+        self._tool_ctrl = self.interface.tool_ctrl
         #: Rows of the "observation" entry: the observation map's, then the previous actions'.
-        self.obs_dim: int = self.plan.obs_map.dim + self._previous_actions.size
+        self.obs_dim: int = self.interface.obs_dim
         self.observation_space = spaces.Dict(
             {
                 "observation": spaces.Box(-np.inf, np.inf, (self.obs_dim,), np.float64),
@@ -184,10 +163,6 @@ class TaskEnv(gym.Env, EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, self._action_shape, np.float32)
         self._action_low = self.action_space.low.astype(np.float64)
         self._action_high = self.action_space.high.astype(np.float64)
-        self.bound_robot.reset_to_home(self.model, self._ik_data)
-        mujoco.mj_kinematics(self.model, self._ik_data)
-        mujoco.mj_comPos(self.model, self._ik_data)
-        self.action_map.check_holds(self.model, self._ik_data, self.robot.joints)
 
     # -- structure -------------------------------------------------------------------------------
     @property
@@ -222,7 +197,7 @@ class TaskEnv(gym.Env, EzPickle):
         mujoco.mj_forward(self.model, self.data)
         self.plan.evaluate(self.model, self.data)
         self._steps = 0
-        self._previous_actions[:] = 0.0
+        self.interface.reset()
         obs = self._observation()
         _, info = self.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
         info["ik_error"] = 0.0
@@ -232,18 +207,15 @@ class TaskEnv(gym.Env, EzPickle):
 
     def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         a = _checked_action(action, self._action_shape, self._action_low, self._action_high)
-        push_previous_action(self._previous_actions, a)
+        interface = self.interface
+        interface.remember(a)
         perturb = self._perturb
         if perturb is not None:
             a = perturb.delayed(a)
-        q_target, ik_error = self._joint_targets(a)
+        q_target, ik_error, _, tool = interface.command(a, self._qpos[self.bound_robot.qpos], self.data)
         self._ctrl[self.bound_robot.ctrl] = q_target
-        if self._suction_ctrl is not None:
-            self._ctrl[self._suction_ctrl] = 1.0 if a[-1] > 0 else 0.0
-        if self._gripper is not None:
-            g, low, half_span, open_close = self._gripper
-            command = (1.0 if a[-1] > 0 else -1.0) if open_close else a[-1]
-            self._ctrl[g] = low + (command + 1.0) * half_span
+        if tool is not None:
+            self._ctrl[self._tool_ctrl] = tool
         warnings_before = self._instability_count()
         substeps = self.n_substeps if perturb is None else perturb.substeps(self.np_random)
         mujoco.mj_step(self.model, self.data, nstep=substeps)
@@ -379,21 +351,6 @@ class TaskEnv(gym.Env, EzPickle):
     def _instability_count(self) -> int:
         counts = self._warning_counts.tolist()
         return counts[_BADQACC] + counts[_BADQVEL] + counts[_BADQPOS]
-
-    def _joint_targets(self, a: np.ndarray) -> tuple[np.ndarray, float]:
-        """Servo targets (n,) for action `a`, and the IK residual (0 for joint actions)."""
-        if self._ik is None:
-            q = self._qpos[self.bound_robot.qpos]
-            return self.action_map.joint_targets(q, a, self.bound_robot.joint_range), 0.0
-        initial = self.plan.ik_value
-        assert initial is not None  # the plan evaluates the IK map whenever the action has one
-        target = self.action_map.ik_target(a, initial.y)
-        if self.ik_iterations == 1:  # the paper's single linearised step, on this step's Jacobian
-            # Its inputs come from the step's own maps and state (finite: a blow-up ends the episode).
-            return self._ik.step(self._qpos[self.bound_robot.qpos], initial, target)
-        self._ik_data.qpos[:] = self.data.qpos
-        result = self._ik.solve(self._ik_data, target, initial)  # a local solve from the current pose
-        return result.q, result.error_norm
 
 
 @contextmanager
