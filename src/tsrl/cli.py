@@ -150,10 +150,17 @@ class Evaluate:
     and a plot (success against the value) and prints the table."""
     out: Annotated[Path | None, arg(metavar="FILE.csv")] = None
     """The table of --perturb (its plot beside it, .png); default RUN_DIR/perturb__KEY[__ENV].csv."""
+    record: Annotated[Path | None, arg(metavar="DIR")] = None
+    """Also write --episodes rollouts of the policy (successful or not, at demonstration seeds of --seed)
+    as a LeRobotDataset v3 folder, as `tsrl demos record --format lerobot` does (docs/datasets.md)."""
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
             raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
+        if self.record is not None and (self.env, self.task, self.perturb) != (None, None, None):
+            raise InvalidConfig(
+                "--record writes rollouts on the run's own task; not with --env, --task or --perturb"
+            )
         if self.out is not None and self.perturb is None:
             raise InvalidConfig("--out names the table of --perturb; give --perturb KEY=V1,V2,...")
 
@@ -183,6 +190,10 @@ class Evaluate:
             f"({round(r.success_rate * r.episodes)}/{r.episodes} episodes), "
             f"mean final distance {r.mean_final_distance:.4f} m"
         )
+        if self.record is not None:
+            from .agents.demo_lerobot import record_rollouts
+
+            print(record_rollouts(self.run_dir, self.record, self.episodes, self.seed))
         return 0
 
 
@@ -284,10 +295,12 @@ class Demos:
     """record: a demonstrator's successful episodes into a .npz file (the built-in task's scripted
     solver, tsrl.envs.solvers.SOLVERS, or a trained run's policy with --policy)."""
     out: Path
-    """The .npz file to write (a Minari dataset goes beside it: OUT with the suffix .minari)."""
-    format: Literal["npz", "minari", "both"] = "npz"
+    """The .npz file to write (a Minari dataset goes beside it: OUT with the suffix .minari; a LeRobot
+    dataset is the folder OUT)."""
+    format: Literal["npz", "minari", "both", "lerobot"] = "npz"
     """npz: the .npz file; minari: a Minari dataset folder (Farama's offline-RL format; needs the minari
-    package), the same episodes; both: the two."""
+    package), the same episodes; both: the two; lerobot: a LeRobotDataset v3 folder (Hugging Face
+    LeRobot's format, docs/datasets.md; needs pyarrow)."""
     env: str = "tsrl/UR5ePickPlace-v0"
     """Environment id (ignored with --policy)."""
     obs: str = ""
@@ -310,6 +323,7 @@ class Demos:
 
     def run(self) -> int:
         from .agents.demo_files import save_demos, summary_line
+        from .agents.demo_lerobot import import_pyarrow, save_lerobot
         from .agents.demo_minari import import_minari, minari_path
         from .agents.demonstrators import record_demos
 
@@ -318,11 +332,18 @@ class Demos:
             "minari": [minari_path(self.out)],
             "both": [self.out, minari_path(self.out)],
         }
-        if self.format != "npz":
-            import_minari()  # missing: one line before the episodes run
+        if self.format == "lerobot":
+            import_pyarrow()  # missing: one line before the episodes run
+        elif self.format != "npz":
+            import_minari()
         demos = record_demos(
             self.env, self.episodes, self.obs, self.action, self.policy, self.seed, self.keep_failed
         )
+        if self.format == "lerobot":  # the layout and task file from the env they were recorded on
+            run = load_config(self.policy) if self.policy is not None else None
+            source = TrainConfig(env_id=self.env, obs=self.obs, action=self.action) if run is None else run
+            print(summary_line(demos, save_lerobot(demos, self.out, source)))
+            return 0
         for path in paths[self.format]:
             print(summary_line(demos, save_demos(demos, path)))
         return 0

@@ -134,8 +134,9 @@ class DemoConfig:
     """Learning from demonstrations (Nair et al. 2018): a demonstration buffer, a Q-filtered BC loss."""
 
     path: Annotated[str | None, arg(name="demos", aliases=("--demos-path",))] = None
-    """Demonstration file (.npz, written by `tsrl demos record`) or Minari dataset folder (`--format
-    minari`, or one written by Minari's own tools on a tsrl environment); None: no demonstrations."""
+    """Demonstration file (.npz, written by `tsrl demos record`), Minari dataset folder (`--format
+    minari`, or one written by Minari's own tools on a tsrl environment) or LeRobot dataset folder
+    (`--format lerobot`, `tsrl evaluate --record`); None: no demonstrations."""
     batch_share: Annotated[float | None, arg(name="demos-batch-share")] = None
     """Share of every minibatch drawn from the demonstrations, HER-relabelled like the replay, in
     [0, 1); 0: demonstrations off. Default: the learner's (paper: 0.125, Nair et al.'s 128 of 1024;

@@ -5,7 +5,8 @@ format, writing and checked reading, and what a run folder records about the fil
 load: a missing, truncated or corrupt file, NaN/inf, or a file from another environment, observation
 spec or action mode is one `DemoFileError` that says what differs. `tsrl.agents.demonstrators` records
 them. The same demonstrations may be a Minari dataset folder instead (tsrl.agents.demo_minari): a path
-ending in .minari is written as one, a folder is read as one, with the same checks.
+ending in .minari is written as one, a folder is read as one, with the same checks; so is a LeRobot
+dataset folder (one with meta/info.json, tsrl.agents.demo_lerobot).
 
 ## File format (version 1)
 One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N episodes of T steps:
@@ -42,6 +43,7 @@ from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig, TsrlError
 from ..files import replacing
 from .config import TrainConfig
+from .demo_lerobot import LeRobotDemoError, is_lerobot, read_lerobot
 from .demo_minari import SUFFIX as MINARI_SUFFIX
 from .demo_minari import MinariDemoError, is_minari, read_minari, write_minari
 
@@ -152,14 +154,20 @@ def save_demos(demos: Demonstrations, path: Path | str) -> Path:
 
 
 def load_demos(path: Path | str, expect: DemoSpec | None = None) -> Demonstrations:
-    """Reads and checks a demonstration file (or Minari dataset folder); with `expect`, it must match
-    that environment spec.
+    """Reads and checks a demonstration file (or a LeRobot or Minari dataset folder); with `expect`, it
+    must match that environment spec.
 
     Raises DemoFileError (missing, truncated or corrupt, another format, inconsistent shapes, NaN/inf,
     actions outside [-1, 1], or a spec that differs from `expect`, naming the differences; for a Minari
     dataset also episodes that do not end by their time limit, demo_minari.read_minari).
     """
     path = Path(path)
+    if is_lerobot(path):  # a folder with meta/info.json (tsrl.agents.demo_lerobot)
+        try:
+            arrays, meta = read_lerobot(path)
+        except LeRobotDemoError as err:
+            raise DemoFileError(path, str(err)) from None
+        return _checked(path, arrays, meta, expect)
     if is_minari(path):
         try:
             arrays, meta = read_minari(path, {"format": FORMAT, "version": VERSION})
