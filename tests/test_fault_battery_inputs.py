@@ -108,3 +108,12 @@ def test_frame_base_on_a_moving_base_names_the_robot_files_base_key(tmp_path):
         "moves with a joint",
         "`base` key",
     )
+
+
+def test_robot_check_with_a_gripper_actuator_the_model_lacks_is_one_line(tmp_path):
+    from own_task import write_task
+
+    write_task(tmp_path)
+    robot = tmp_path / "arm.toml"
+    robot.write_text(robot.read_text() + 'gripper = "hand"\n')
+    _refused(run_tsrl("robot", "check", str(robot)), str(robot), "gripper", "'hand'", "elbow, shoulder, yaw")

@@ -140,9 +140,9 @@ def prepare_spec(spec: mujoco.MjSpec, robot: Robot, where: str) -> PreparedArm:
     tcp = check("tcp", lambda: resolve_frame(probe, robot.tcp))
     _check_chain(probe, joints, tcp.body, robot.tcp, where)
     home_q = check("home", lambda: _home_q(probe, robot))
-    suction = robot.suction
-    if suction is not None:
-        check("suction", lambda: name_to_id(probe, "actuator", suction))
+    for key, actuator in (("suction", robot.suction), ("gripper", robot.gripper)):
+        if actuator is not None:
+            check(key, functools.partial(name_to_id, probe, "actuator", actuator))
     base = check("base", lambda: arm_base(probe, robot))
     drop = _equalities_to_drop(spec, robot.drop_equalities, where)
     if drop:  # the pin check below sees the model without them
