@@ -109,6 +109,7 @@ class Deploy:
         from .backends import ShadowBackend, check_backend, make_backend
         from .controller import Controller, ControllerOptions
         from .loop import DeployLog, log_header, run_episodes
+        from .timing import worst_of
 
         assert self.export_dir is not None
         goal = _parse_goal(self.goal)
@@ -154,17 +155,21 @@ class Deploy:
                 "" if r.true_success is None else f", simulator: {'success' if r.true_success else 'failure'}"
             )
             faults = ", ".join(f"{k} x{v}" for k, v in sorted(r.faults.items())) or "none"
+            timing = "" if r.timing is None else f"; {r.timing.summary()}"
             print(
                 f"episode {i} (seed {r.seed}): {'success' if r.success else 'failure'}{true}, final distance "
-                f"{r.distance:.4f} m, faults: {faults}"
+                f"{r.distance:.4f} m, faults: {faults}{timing}"
             )
         compute = np.concatenate([r.compute_s for r in results]) * 1e3
         interp = np.concatenate([r.interpolate_s for r in results]) * 1e6
         wins = sum(r.success for r in results)
+        timings = [r.timing for r in results if r.timing is not None]
+        unpaced = self.backend == "mujoco" and not self.realtime
+        loop = f"{worst_of(timings)}{' (simulator unpaced; --realtime paces it)' if unpaced else ''}; "
         print(
             f"success {wins}/{len(results)}; controller per policy step p50 {np.percentile(compute, 50):.3f} ms, "
             f"p99 {np.percentile(compute, 99):.3f} ms; interpolate p99 {np.percentile(interp, 99):.1f} us; "
-            f"log: {self.log}" + (" (dry run: nothing was sent)" if self.dry_run else "")
+            f"{loop}log: {self.log}" + (" (dry run: nothing was sent)" if self.dry_run else "")
         )
         return 0
 

@@ -7,8 +7,9 @@ last step the state is read once more and the episode's success is the task's ru
 
 The log is JSON lines: a header (export folder, contract sha256, backend, options), one record per
 policy step (state, features, action, IK target, joint target, the period's servo commands, faults,
-compute time) and one per episode (success). `replay` recomputes every step from its logged inputs
-with a fresh controller (the commands must come out the same) and renders the logged states.
+compute time, wall-clock start and latency) and one per episode (success, the loop's figures:
+tsrl.deploy.timing). `replay` recomputes every step from its logged inputs with a fresh controller
+(the commands must come out the same) and renders the logged states.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from ..exceptions import InvalidConfig
 from .backends import MujocoBackend, RobotBackend, check_backend
 from .contract import CONTRACT, sha256
 from .controller import Controller, ControllerOptions, Cycle
+from .timing import LoopTiming
 
 #: How the servo commands of a period are made: the limiter's interpolation (always on hardware), or
 #: the policy step's target held for the period as the training environment does (MuJoCo only).
@@ -52,6 +54,12 @@ class EpisodeResult:
     """Controller compute time of each policy step (act) [s], wall clock."""
     interpolate_s: list[float] = field(default_factory=list)
     """Time of each `interpolate` call [s], wall clock."""
+    start_s: list[float] = field(default_factory=list)
+    """Wall-clock start of each policy step [s, time.perf_counter] (tsrl.deploy.timing)."""
+    latency_s: list[float] = field(default_factory=list)
+    """Each policy step's latency [s]: its start to the period's first command sent."""
+    timing: LoopTiming | None = None
+    """The episode's control-loop figures (rate, latency, jitter), set at its end."""
 
 
 class DeployLog:
@@ -76,9 +84,13 @@ class DeployLog:
         servo_t: list[float],
         servo: list[np.ndarray],
         compute_s: float,
+        wall_t: float,
+        latency_s: float,
     ) -> None:
-        """A policy step: the Cycle, then the period's servo calls (times [s] and commands)."""
+        """A policy step: the Cycle, then the period's servo calls (times [s] and commands); its
+        wall-clock start [s since the episode's first step] and latency [s]."""
         record = {"type": "cycle", "episode": episode, "step": step, "compute_s": compute_s}
+        record |= {"wall_t": wall_t, "latency_s": latency_s}
         record |= dataclasses.asdict(cycle)
         record |= {"servo_t": servo_t, "servo": servo}
         self._write(record)
@@ -94,6 +106,7 @@ class DeployLog:
                 "distance": result.distance,
                 "steps": result.steps,
                 "faults": dict(result.faults),
+                "timing": None if result.timing is None else result.timing.record(),
             }
         )
 
@@ -227,6 +240,7 @@ def _episode(
     result = EpisodeResult(seed, False, None, math.nan, steps)
     h = backend.period
     for step in range(steps):
+        result.start_s.append(time.perf_counter())
         state = backend.read_state()
         t = backend.now()
         start = time.perf_counter()
@@ -236,7 +250,7 @@ def _episode(
         assert cycle is not None
         result.faults.update(cycle.faults)
         times, commands = [], []
-        for _ in range(ticks):
+        for tick in range(ticks):
             t_servo = backend.now() + h  # the command is where the servos are to be at the tick's end
             start = time.perf_counter()
             command = controller.interpolate(t_servo)
@@ -246,9 +260,13 @@ def _episode(
             times.append(t_servo)
             commands.append(command)
             backend.send(command, controller.suction)
+            if tick == 0:
+                result.latency_s.append(time.perf_counter() - result.start_s[-1])
             backend.wait()
         if log is not None:
-            log.cycle(index, step, cycle, times, commands, result.compute_s[-1])
+            wall_t = result.start_s[-1] - result.start_s[0]
+            log.cycle(index, step, cycle, times, commands, result.compute_s[-1], wall_t, result.latency_s[-1])
+    result.timing = LoopTiming.of(result.start_s, result.latency_s, controller.control_period)
     state = backend.read_state()
     info = controller.outcome(state.q, state.qd, state.objects)
     result.success = bool(info.get("is_success", False))
