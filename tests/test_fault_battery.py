@@ -1,74 +1,126 @@
-"""The bad-input and fault battery (issue 53): each input a new user might try is refused before any
-work starts with one line (exit code 2) naming the file, the key, the value and what is accepted, or
-is handled (a signal leaves a checkpoint that resumes). Tiny budgets; no timing assertions."""
+"""The bad-input and fault battery (issue 53): each input or fault a new user tried is refused before any
+work starts, in one line naming the file or option, the key, the value and what is accepted (exit 2 at
+the command line), or handled (a signal stops the work and leaves a checkpoint to resume from).
+
+Signal tests never wait on time: a signal is sent once a file or line shows where the process is, or by
+the process to itself at the point under test, and the test waits for the exit with a generous timeout.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
+from cli_runner import REPO, run_tsrl
+from training_helpers import tiny
 
-from tests.cli_runner import run_tsrl
-from tsrl.envs.tasks import builtin_task_path
-
-REACH = builtin_task_path("UR5eReach-v0").read_text()
-PICK = builtin_task_path("UR5ePickPlace-v0").read_text()
-
-
-def _refused(done, *words: str) -> str:
-    """The one line of a refusal (exit code 2), checked to hold each of `words`."""
-    assert done.returncode == 2, (done.returncode, done.stdout[-2000:], done.stderr[-2000:])
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
-    for word in words:
-        assert word in lines[0], (word, lines[0])
-    return lines[0]
+from tsrl.agents import evaluation
+from tsrl.agents.run_folder import read_progress
+from tsrl.agents.training import TrainingInterrupted, resume, train
+from tsrl.experiments.runner import checkpoint_steps
 
 
-def _task(tmp_path: Path, text: str, name: str = "bad.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+def _one_line(result: subprocess.CompletedProcess) -> str:
+    """The single stderr line of a refused command (exit 2, nothing on stdout)."""
+    assert result.returncode == 2, result.stderr
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("tsrl: error: ")
+    return line
 
 
-# -- task files: counts and sizes have upper bounds; bad values are one line ----------------------
-@pytest.mark.parametrize(
-    ("source", "old", "new", "words"),
-    [
-        (REACH, "episode_steps = 50", "episode_steps = 100000000000", ["episode_steps", "at most 10,000"]),
-        (REACH, "episode_steps = 50", "episode_steps = 0", ["episode_steps", "> 0"]),
-        (REACH, "control_dt = 0.04", "control_dt = 100000.0", ["control_dt", "at most 1 s"]),
-        (REACH, "position = 0.05", "position = 1e300", ["success.position", "1e+300", "at most 10 m"]),
-        (REACH, "episode_steps = 50", "episode_steps = 500\nprevious_actions = 400", ["previous_actions", "to 100"]),
-        (PICK, 'body = "box"', 'body = "box"\nmin_separation = -0.1', ["min_separation", "-0.1", ">= 0"]),
-        (REACH, 'reward = "0/1"', 'reward = "0/1"\n\n[randomize]\nobject_mass = [0.5, 2.0]', ["object_mass", "no [[objects]]"]),
-    ],
-)  # fmt: skip
-def test_a_bad_task_file_value_is_one_line_before_training(tmp_path, source, old, new, words):
-    assert old in source
-    path = _task(tmp_path, source.replace(old, new, 1))
-    out = tmp_path / "out"
-    _refused(
-        run_tsrl("train", "--task", str(path), "--total-timesteps", "100", "--out-dir", str(out)),
-        str(path),
-        *words,
+# -- signals -------------------------------------------------------------------------------------------
+def test_sigterm_during_an_evaluation_stops_it_and_the_checkpoint_resumes(tmp_path, monkeypatch):
+    """SIGTERM arriving while an evaluation runs stops it before its next step (it never waits for every
+    episode to end); the run leaves a checkpoint, no row of the dropped evaluation, and resumes from it."""
+    evaluate = evaluation.Evaluator.evaluate
+    sent = []
+
+    def signalled(self, *args, **kwargs):  # the signal lands inside the first evaluation
+        if not sent:
+            sent.append(os.getpid())
+            os.kill(os.getpid(), signal.SIGTERM)
+        return evaluate(self, *args, **kwargs)
+
+    monkeypatch.setattr(evaluation.Evaluator, "evaluate", signalled)
+    cfg = tiny()
+    with pytest.raises(TrainingInterrupted) as stop:
+        train(cfg, tmp_path, progress_bar=False)
+    run_dir = tmp_path / cfg.run_name
+    assert stop.value.signum == signal.SIGTERM and sent
+    assert read_progress(run_dir) == [] and (run_dir / "checkpoints").is_dir()  # the evaluation dropped
+    monkeypatch.undo()
+    resume(run_dir, progress_bar=False)
+    rows = read_progress(run_dir)
+    assert [int(r["env_steps"]) for r in rows] == [0, 100, 200]  # step 0 evaluated again on resume
+    assert checkpoint_steps(run_dir) == cfg.total_timesteps
+
+
+def _experiment_file(tmp_path: Path) -> Path:
+    definition = tmp_path / "long.toml"
+    definition.write_text(
+        'obs = ["fs1"]\nseeds = [0]\ntotal_timesteps = 1000000\neval_freq = 100\neval_episodes = 2\n'
+        "[agent]\nlearning_starts = 100\n"
     )
-    assert not out.exists()
+    return definition
 
 
-def test_too_many_objects_say_the_bound(tmp_path):
-    tables = "".join(
-        '\n[[objects]]\nbody = "box"\ncenter = [0, 0, 0]\nhalf_extent = [0, 0, 0]\n' for _ in range(33)
-    )
-    path = _task(tmp_path, PICK + tables)
-    _refused(run_tsrl("train", "--task", str(path), "--out-dir", str(tmp_path)), "[[objects]]", "at most 32")
+#: `tsrl` as a shell's background job starts it: SIGINT ignored, inherited from the shell.
+_TSRL_IN_BACKGROUND = [
+    sys.executable,
+    "-c",
+    (
+        "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); sys.argv[0] = 'tsrl'; "
+        "runpy.run_module('tsrl.cli', run_name='__main__', alter_sys=True)"
+    ),
+]
 
 
-@pytest.mark.parametrize("value", ["-1", "0"])
-def test_a_scale_perturbation_of_zero_or_less_says_the_same_bound(value):
-    from tsrl.agents.transfer import parse_perturb
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_background_experiment_stops_on_sigint_and_sigterm_with_128_plus_the_signal(tmp_path, sig):
+    """Started as a shell's background job (SIGINT inherited ignored), `tsrl experiment` still stops on
+    SIGINT (exit 130) and on SIGTERM (exit 143), once it has started (experiment.json written)."""
+    out = tmp_path / "results"
+    proc = subprocess.Popen(
+        [*_TSRL_IN_BACKGROUND, "experiment", str(_experiment_file(tmp_path)), "--out-dir", str(out),
+         "--workers", "1", "--no-report"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=REPO, start_new_session=True,
+    )  # fmt: skip
+    try:
+        while not (out / "long" / "experiment.json").is_file():
+            assert proc.poll() is None, proc.communicate()[1]
+        proc.send_signal(sig)
+        stderr = proc.communicate(timeout=180)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)  # it and its workers (its own session)
+            proc.communicate()
+    assert proc.returncode == 128 + sig, stderr
+    assert stderr.splitlines()[-1] == "tsrl experiment: interrupted; run it again to resume"
+
+
+# -- tracebacks: one line instead ----------------------------------------------------------------------
+def test_evaluate_perturb_out_in_a_missing_folder_is_refused_before_the_evaluation(tmp_path):
+    out = tmp_path / "no" / "such" / "x.csv"
+    line = _one_line(run_tsrl("evaluate", str(tmp_path), "--perturb", "servo_gain=1", "--out", str(out)))
+    assert f"--out {out}: no writable folder {out.parent}" in line and "existing folder" in line
+
+
+# -- misleading messages -------------------------------------------------------------------------------
+def test_init_from_another_observation_names_both_layouts():
+    """Two runs on one task: the message tells them apart by observation (it said "X does not match X")."""
+    from tsrl.agents.transfer import check_run_layouts
     from tsrl.exceptions import InvalidConfig
 
+    source, new = tiny(), dataclasses.replace(tiny(), obs="baseline")
     with pytest.raises(InvalidConfig) as err:
-        parse_perturb(f"object_friction={value}")
-    assert f"object_friction = {value}; accepted: values > 0" in str(err.value)
+        check_run_layouts(source, new)
+    (line,) = str(err.value).splitlines()
+    assert line.startswith(
+        "tsrl/UR5eReach-v0 (observation baseline, action taskspace) does not match the layout of "
+        "tsrl/UR5eReach-v0 (observation fs1, action taskspace): observation row 1"
+    )

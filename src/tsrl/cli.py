@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -163,6 +164,11 @@ class Evaluate:
             )
         if self.out is not None and self.perturb is None:
             raise InvalidConfig("--out names the table of --perturb; give --perturb KEY=V1,V2,...")
+        if self.out is not None and not (self.out.parent.is_dir() and os.access(self.out.parent, os.W_OK)):
+            raise InvalidConfig(
+                f"--out {self.out}: no writable folder {self.out.parent}; accepted: a .csv file in an "
+                "existing folder (checked before the evaluation runs)"
+            )
 
     def run(self) -> int:
         from .agents.transfer import check_layout, eval_task, parse_perturb, sweep, target_env

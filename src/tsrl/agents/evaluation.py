@@ -10,6 +10,7 @@ goal), those count, else info["is_success"] / info["distance"].
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,6 +49,10 @@ class EvalResult:
     NaN if the env reports no penalty."""
 
 
+class EvaluationStopped(Exception):
+    """Evaluator.evaluate's `stop` answered True between two steps (a signal came): no result."""
+
+
 def eval_seeds(seed: int, n: int) -> list[int]:
     """The seeds of a run's n evaluation episodes: fixed for the run, different across run seeds."""
     return [int(s) for s in np.random.SeedSequence(entropy=seed, spawn_key=(_EVAL_STREAM,)).generate_state(n)]
@@ -74,7 +79,11 @@ class Evaluator:
             for _ in self.seeds
         ]
 
-    def evaluate(self, model: BaseAlgorithm, normalizer: VecNormalize | None) -> EvalResult:
+    def evaluate(
+        self, model: BaseAlgorithm, normalizer: VecNormalize | None, stop: Callable[[], bool] | None = None
+    ) -> EvalResult:
+        """The result over every episode; raises EvaluationStopped where `stop()` is True before a step
+        (training asks it between steps, so SIGTERM never waits for thousands of episodes to end)."""
         observations = [env.reset(seed=s)[0] for env, s in zip(self.envs, self.seeds, strict=True)]
         active = list(range(len(self.envs)))
         success = np.zeros(len(self.envs), dtype=bool)
@@ -82,6 +91,8 @@ class Evaluator:
         penalised = np.zeros(len(self.envs), dtype=bool)
         reports_penalty = False
         while active:
+            if stop is not None and stop():
+                raise EvaluationStopped
             batch: Any = {key: np.stack([observations[i][key] for i in active]) for key in observations[0]}
             if normalizer is not None:
                 batch = normalizer.normalize_obs(batch)

@@ -3,8 +3,9 @@
 One process trains a run folder at a time (RunLock). Resuming uses the newest checkpoint that passes
 verification and falls back to the previous one if it is damaged (tsrl.agents.checkpoint).
 Evaluations and checkpoints happen at "safe points": after an update, where the next episode starts.
-SIGINT and SIGTERM are noted and honoured at the next safe point (at most one update period later):
-a checkpoint is written and TrainingInterrupted raised. A second SIGINT stops at once, without one.
+SIGINT and SIGTERM are noted and honoured at the next safe point (at most one update period later,
+or the next step of a running evaluation, which is dropped and run again on resume): a checkpoint is
+written and TrainingInterrupted raised. A second SIGINT stops at once, without one.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoin
 from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss, load_run_demos
-from .evaluation import Evaluator, eval_seeds
+from .evaluation import EvaluationStopped, Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
@@ -304,8 +305,11 @@ class _SafePointCallback(BaseCallback):
         step = _clock(model)
         stop = self.session.stop_signal
         if (step >= self.next_eval or final) and step != self.last_eval_step and stop is None:
-            self._evaluate(model, step)
-            self.next_eval = (step // self.cfg.eval_freq + 1) * self.cfg.eval_freq
+            try:
+                self._evaluate(model, step)
+                self.next_eval = (step // self.cfg.eval_freq + 1) * self.cfg.eval_freq
+            except EvaluationStopped:  # a signal during it: checkpointed below, evaluated again on resume
+                stop = self.session.stop_signal
         if step >= self.next_checkpoint or final or stop is not None:
             self.next_checkpoint = (step // self.cfg.checkpoint_freq + 1) * self.cfg.checkpoint_freq
             state = RunState(
@@ -325,7 +329,9 @@ class _SafePointCallback(BaseCallback):
 
     def _evaluate(self, model: OffPolicyAlgorithm, step: int) -> None:
         t0 = time.monotonic()
-        result = self.session.evaluator.evaluate(model, self.session.normalizer)
+        result = self.session.evaluator.evaluate(
+            model, self.session.normalizer, stop=lambda: self.session.stop_signal is not None
+        )
         self.eval_time += time.monotonic() - t0
         losses = model.logger.name_to_value
         row = {

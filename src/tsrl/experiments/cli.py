@@ -10,11 +10,14 @@ import importlib.util
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 from tyro.conf import Positional, arg
 
 from ..exceptions import InvalidConfig
+
+if TYPE_CHECKING:
+    from .config import ExperimentConfig
 
 #: Exit codes of `tsrl experiment` besides 0 (every run at its budget) and 2 (bad input).
 EXIT_FAILED_RUNS = 1
@@ -76,14 +79,21 @@ def _cmd_experiment(args: Experiment) -> int:
     if args.ray is not None and importlib.util.find_spec("ray") is None:
         raise InvalidConfig("--ray needs Ray: pip install 'tsrl[ray]'")
     exp = load_experiment(resolve_experiment(args.experiment))
+    from .pool import ExperimentStopped, stop_signals
+
+    with stop_signals():  # a background job's SIGINT too; exit 128 + the signal's number
+        try:
+            return _experiment(args, exp)
+        except ExperimentStopped as stop:
+            print("tsrl experiment: interrupted; run it again to resume", file=sys.stderr)
+            return 128 + stop.signum
+
+
+def _experiment(args: Experiment, exp: ExperimentConfig) -> int:
     from .pool import run_experiment
 
-    try:
-        outcomes = run_experiment(exp, args.out_dir, workers=args.workers, ray_address=args.ray)
-        interrupted = any(o.status == "interrupted" for o in outcomes)
-    except KeyboardInterrupt:  # a second Ctrl-C
-        interrupted = True
-    if interrupted:
+    outcomes = run_experiment(exp, args.out_dir, workers=args.workers, ray_address=args.ray)
+    if any(o.status == "interrupted" for o in outcomes):  # a run's own process was signalled
         print("tsrl experiment: interrupted; run it again to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     exp_dir = args.out_dir / exp.name

@@ -143,8 +143,12 @@ def record_missing_demos(recipe: DemoRecipe, todo: list[TrainConfig], display: P
 
 
 # -- the one scheduler and its stop logic --------------------------------------------------------------
-class _Stop(Exception):
-    """SIGTERM in the parent: handled as Ctrl-C."""
+class ExperimentStopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM (`signum`) in the parent, handled as Ctrl-C; `tsrl experiment` exits 128 + signum."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 class _Backend(Protocol):
@@ -178,18 +182,40 @@ class _Backend(Protocol):
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM raises _Stop in the main thread for the block (Ctrl-C raises KeyboardInterrupt anyway)."""
+def stop_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM raise ExperimentStopped in the main thread for the block. SIGINT too where the
+    process inherited it ignored (a shell's background job), as `tsrl train` installs its own handler."""
 
-    def on_sigterm(signum: int, frame: object) -> None:
-        raise _Stop
+    def on_signal(signum: int, frame: object) -> None:
+        raise ExperimentStopped(signum)
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread() else None
+    signals = (signal.SIGINT, signal.SIGTERM) if in_main_thread() else ()
+    previous = {sig: signal.signal(sig, on_signal) for sig in signals}
     try:
         yield
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM that arrive during the block are raised again after it (the first of them),
+    so that a signal never cuts a worker's start in half: a half-sent pipe makes the new process die
+    with a traceback of its own."""
+    if not in_main_thread():
+        yield
+        return
+    caught: list[int] = []
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum)) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def _schedule(
@@ -203,11 +229,13 @@ def _schedule(
     - a second Ctrl-C (or SIGTERM) kills the running runs and raises KeyboardInterrupt;
     - a failed run stops nothing: the others go on.
 
-    Runs that never started are reported interrupted ("not started").
+    Runs that never started are reported interrupted ("not started"); after a stop by a signal,
+    ExperimentStopped is raised once every outcome is in.
     """
     pending = deque(todo)
     stopping = False
-    with _sigterm_as_interrupt():
+    stopped_by: int | None = None
+    with stop_signals():
         try:
             while True:
                 try:
@@ -225,11 +253,12 @@ def _schedule(
                             stopping = True
                             display.message("a run was interrupted: no new runs start")
                     display.refresh(backend.running())
-                except (KeyboardInterrupt, _Stop):
+                except KeyboardInterrupt as err:
+                    signum = err.signum if isinstance(err, ExperimentStopped) else signal.SIGINT
                     if stopping:
                         backend.kill()
-                        raise KeyboardInterrupt from None
-                    stopping = True
+                        raise ExperimentStopped(signum) from None
+                    stopping, stopped_by = True, signum
                     display.message(
                         f"stopping: {len(backend.running())} running run(s) save a checkpoint and stop; "
                         f"{len(pending)} not started; Ctrl-C again to stop at once"
@@ -239,6 +268,8 @@ def _schedule(
             backend.close()
     for cfg in pending:
         outcomes[cfg.run_name] = RunOutcome(cfg.run_name, "interrupted", 0, 0.0, error="not started")
+    if stopped_by is not None:
+        raise ExperimentStopped(stopped_by)
 
 
 # -- local process pool ----------------------------------------------------------------------------
@@ -287,11 +318,12 @@ class _LocalPool:
         return len(self.running()) < self.size
 
     def start(self, cfg: TrainConfig) -> None:
-        idle = [w for w in self.workers if w.cfg is None]
-        worker = idle[0] if idle else _Worker(self.ctx)
-        if not idle:
-            self.workers.append(worker)
-        worker.give(cfg, self.exp_dir)
+        with _signals_deferred():
+            idle = [w for w in self.workers if w.cfg is None]
+            worker = idle[0] if idle else _Worker(self.ctx)
+            if not idle:
+                self.workers.append(worker)
+            worker.give(cfg, self.exp_dir)
 
     def running(self) -> list[TrainConfig]:
         return [w.cfg for w in self.workers if w.cfg is not None]
