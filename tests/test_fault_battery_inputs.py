@@ -117,3 +117,21 @@ def test_robot_check_with_a_gripper_actuator_the_model_lacks_is_one_line(tmp_pat
     robot = tmp_path / "arm.toml"
     robot.write_text(robot.read_text() + 'gripper = "hand"\n')
     _refused(run_tsrl("robot", "check", str(robot)), str(robot), "gripper", "'hand'", "elbow, shoulder, yaw")
+
+
+def test_a_goal_box_beyond_the_arms_reach_is_one_line_even_without_action_bounds(tmp_path):
+    """The ten-line arm (0.8 m from its first joint to its tool; its position action has no bounds)
+    asked for goals 2 m away."""
+    from own_task import write_task
+
+    task = write_task(tmp_path)
+    text = task.read_text()
+    assert "low" not in text and "center = [0.6, 0.0, 0.3]" in text
+    task.write_text(text.replace("center = [0.6, 0.0, 0.3]", "center = [2.0, 0.0, 0.3]"))
+    _refused(
+        run_tsrl("train", "--task", str(task), "--out-dir", str(tmp_path / "out")),
+        str(task),
+        "goal.position",
+        "2.10 m from the arm's first joint",
+        "'tool' reaches at most 0.80 m",
+    )

@@ -24,6 +24,7 @@ from ..exceptions import InvalidConfig
 from ..kinematics import name_to_id
 from ..taskmaps import Position, Quaternion, Stack, TaskMap, Velocity, parse_spec
 from ..taskmaps.relabel import FrameMove, FramePose, check_relabelable, relabelled
+from .reach import check_goal_reachable
 from .scenes import TARGET_BODY, TARGET_SITE
 from .tasks import Penalty, Task
 
@@ -79,6 +80,7 @@ class Goal:
             )
         self.pose = has_pose
         _check_parts_apart(model, self.parts, task.goal.offsets)
+        check_goal_reachable(task, model, joints, self.parts[0].frame)
         self.achieved_maps: list[TaskMap] = list(achieved.parts)
         desired = [
             f"position({p.marker})" + (f", quaternion({p.marker})" if p.quaternion is not None else "")
