@@ -68,6 +68,12 @@ def panda_pick_place(exports: Callable[..., Path]) -> Path:
 
 
 @pytest.fixture(scope="session")
+def panda_pick_place_gripper(exports: Callable[..., Path]) -> Path:
+    """The pick-and-place with the Franka Hand (a gripper dimension), on the task's own observation."""
+    return exports("panda_pick_place_gripper", env_id="tsrl/PandaPickPlaceGripper-v0", obs="")
+
+
+@pytest.fixture(scope="session")
 def ur5e_reach_history(exports: Callable[..., Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The reach with its last 2 actions observed (a task file with `previous_actions = 2`)."""
     from tsrl.envs.tasks import load_task

@@ -24,7 +24,8 @@ from tsrl.exceptions import InvalidConfig
 
 
 def measured(env, controller):
-    """The env's true state as a robot would report it: q, qd (the arm's), objects (pose + qvel)."""
+    """The env's true state as a robot would report it: q, qd (the arm's), objects (pose + qvel), the
+    gripper's width (None without one)."""
     data = env.data
     q = data.qpos[controller._qpos].copy()
     qd = data.qvel[controller._dofs].copy()
@@ -32,30 +33,41 @@ def measured(env, controller):
         body: np.concatenate([data.qpos[a : a + 7], data.qvel[d : d + 6]])
         for body, (a, d) in controller._objects.items()
     }
-    return q, qd, objects
+    return q, qd, objects, env.interface.measure_tool(data)
 
 
-@pytest.mark.parametrize("name", ["ur5e_reach", "panda_pick_place", "ur5e_reach_history"])
+@pytest.mark.parametrize(
+    "name", ["ur5e_reach", "panda_pick_place", "ur5e_reach_history", "panda_pick_place_gripper"]
+)
 def test_features_and_joint_targets_are_the_environments_own(name, request):
     folder = request.getfixturevalue(name)
     controller = Controller.from_export(folder)
     env = exported_env(folder, controller.contract)
+    tool = env.interface.tool_ctrl
     T = controller.control_period
     for episode in range(2):
         obs, _ = env.reset(seed=episode)
-        q, qd, objects = measured(env, controller)
+        q, qd, objects, width = measured(env, controller)
         controller.reset(q, 0.0, obs["desired_goal"])
         for k in range(env.task.episode_steps):
-            controller.act(q, qd, objects, t=k * T, stamp=k * T)
+            controller.act(q, qd, objects, t=k * T, stamp=k * T, tool=width)
             cycle = controller.last
-            assert cycle.faults == () or cycle.faults == ("workspace_clip",)
-            np.testing.assert_array_equal(cycle.observation, obs["observation"])
+            assert set(cycle.faults) <= {"workspace_clip", "joint_limit"}  # reported; it acted (q_ik)
+            # Equal to the bit, but with a gripper: the robot reports one width, the simulated fingers
+            # may differ by a few nm (the controller places them symmetrically), which moves the hand's
+            # centre of mass and so the Jacobian's rounding (1e-12).
+            atol = 1e-12 if width is None else 1e-9
+            np.testing.assert_allclose(cycle.observation, obs["observation"], rtol=0, atol=atol)
+            if width is None:
+                np.testing.assert_array_equal(cycle.observation, obs["observation"])
             np.testing.assert_array_equal(cycle.achieved_goal, obs["achieved_goal"])
             np.testing.assert_array_equal(cycle.desired_goal, obs["desired_goal"])
-            # The env stepped with the controller's action commands the controller's IK targets.
+            # The env stepped with the controller's action commands the controller's IK targets and tool.
             obs, *_ = env.step(cycle.applied_action)
-            np.testing.assert_allclose(env.data.ctrl[env.bound_robot.ctrl], cycle.q_ik, rtol=0, atol=1e-12)
-            q, qd, objects = measured(env, controller)
+            np.testing.assert_allclose(env.data.ctrl[env.bound_robot.ctrl], cycle.q_ik, rtol=0, atol=atol)
+            if tool is not None:
+                assert env.data.ctrl[tool] == cycle.tool
+            q, qd, objects, width = measured(env, controller)
 
 
 def reset_at_home(controller):
@@ -176,3 +188,19 @@ print("ok")
     )
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "ok"
+
+
+def test_a_gripper_task_without_a_finite_width_holds(panda_pick_place_gripper):
+    from tsrl.deploy.controller import MISSING_TOOL
+
+    controller = Controller.from_export(panda_pick_place_gripper)
+    env = exported_env(controller.folder, controller.contract)
+    obs, _ = env.reset(seed=0)
+    q, qd, objects, width = measured(env, controller)
+    assert width is not None and 0 < width <= 0.08
+    controller.reset(q, 0.0, obs["desired_goal"])
+    for k, (bad, fault) in enumerate(((None, MISSING_TOOL), (float("nan"), NONFINITE_STATE)), start=1):
+        controller.act(q, qd, objects, t=0.04 * k, tool=bad)
+        assert controller.last.faults == (fault,) and controller.last.action is None
+    controller.act(q, qd, objects, t=0.2, tool=width)
+    assert controller.last.faults in ((), ("workspace_clip",)) and controller.tool is not None

@@ -102,7 +102,6 @@ def test_a_policy_that_sees_fewer_inputs_exports_only_those(tmp_path):
     [
         ("tsrl/UR5eObstacleReach-v1", "obstacle whose size is drawn"),
         ("tsrl/PandaPegInsert-v0", "places fixtures"),
-        ("tsrl/PandaPickPlaceGripper-v0", "commands a gripper"),
     ],
 )
 def test_tasks_the_runtime_cannot_measure_are_refused_in_one_line(env_id, why, tmp_path):

@@ -35,12 +35,14 @@ class BackendError(TsrlError):
 
 class RobotState(NamedTuple):
     """What a backend measured: at `time` [s, the backend's clock], joint positions q (n,) [rad],
-    velocities qd (n,) [rad/s], and object poses by body (7,) or (13,) (tsrl.deploy.Controller.act)."""
+    velocities qd (n,) [rad/s], object poses by body (7,) or (13,), and the gripper's opening width
+    [m] or None (tsrl.deploy.Controller.act)."""
 
     time: float
     q: np.ndarray
     qd: np.ndarray
     objects: dict[str, np.ndarray]
+    tool: float | None = None
 
 
 class RobotBackend(Protocol):
@@ -59,8 +61,10 @@ class RobotBackend(Protocol):
     def read_state(self) -> RobotState:
         """The latest measured state."""
 
-    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
-        """A joint position command (n,) for this servo period, and the suction command if any."""
+    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+        """A joint position command (n,) for this servo period, and the tool command if any (the tool
+        actuator's control value: suction 1 on / 0 off, a gripper's target width [m];
+        Controller.tool)."""
 
     def wait(self) -> None:
         """Returns at the start of the next servo period."""
@@ -129,7 +133,7 @@ class MujocoBackend:
         self.realtime = realtime
         self._qpos, self._ctrl = robot.qpos, robot.ctrl
         self._dofs = arm_dof_indices(self.model, robot.joints)
-        self._suction_ctrl = robot.suction_ctrl
+        self._tool_ctrl = self.env.interface.tool_ctrl
         self._objects: dict[str, tuple[int, int]] = {}
         for obj in self.env.task.objects:
             joint = self.model.body_jntadr[name_to_id(self.model, "body", obj.body)]
@@ -137,7 +141,7 @@ class MujocoBackend:
         self._delay = round(latency / self.period)
         self.joint_noise, self.object_noise, self.drop_rate = joint_noise, object_noise, drop_rate
         self._rng = np.random.default_rng(seed)
-        self._queue: collections.deque[tuple[np.ndarray, bool | None]] = collections.deque()
+        self._queue: collections.deque[tuple[np.ndarray, float | None]] = collections.deque()
         self._last_state: RobotState | None = None
         self._wall_start = 0.0
         self._sim_start = 0.0
@@ -168,24 +172,25 @@ class MujocoBackend:
             if self.object_noise:
                 state[:3] += self._rng.normal(0.0, self.object_noise, 3)
             objects[body] = state
-        self._last_state = RobotState(self.now(), q, self.data.qvel[self._dofs].copy(), objects)
+        width = self.env.interface.measure_tool(self.data)
+        self._last_state = RobotState(self.now(), q, self.data.qvel[self._dofs].copy(), objects, width)
         return self._last_state
 
-    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> None:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
             raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
         if self.drop_rate and self._rng.random() < self.drop_rate:
             return  # lost on the way
-        self._queue.append((q.copy(), suction))
+        self._queue.append((q.copy(), tool))
 
     def wait(self) -> None:
         """Applies the command due now (after `latency`), then one physics step; paced in real time."""
         while len(self._queue) > self._delay:
-            q, suction = self._queue.popleft()
+            q, tool = self._queue.popleft()
             self.data.ctrl[self._ctrl] = q
-            if suction is not None and self._suction_ctrl is not None:
-                self.data.ctrl[self._suction_ctrl] = 1.0 if suction else 0.0
+            if tool is not None and self._tool_ctrl is not None:
+                self.data.ctrl[self._tool_ctrl] = tool
             self.applied += 1
         mujoco.mj_step(self.model, self.data)
         if self.realtime:
@@ -227,7 +232,7 @@ class ShadowBackend:
     def read_state(self) -> RobotState:
         return self.backend.read_state()
 
-    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> None:
         self.sent += 1  # logged by the deploy loop; never forwarded
 
     def wait(self) -> None:
@@ -289,7 +294,7 @@ class UrRtdeBackend:
         qd = np.asarray(self._receive.getActualQd(), dtype=np.float64)
         return RobotState(self.now(), q, qd, {})
 
-    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> None:
         # velocity and acceleration are unused by servoJ (ur-rtde's documentation); dt is the period.
         self._control.servoJ(list(map(float, q)), 0.0, 0.0, self.period, self.lookahead_time, self.gain)
 
@@ -347,7 +352,7 @@ class FrankaBackend:
             self.now(), np.asarray(state.position, np.float64), np.asarray(state.velocity, np.float64), {}
         )
 
-    def send(self, q: np.ndarray, suction: bool | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> None:
         self._robot.move(self._franky.JointMotion(list(map(float, q))), asynchronous=True)
 
     def wait(self) -> None:

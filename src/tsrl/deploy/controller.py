@@ -6,10 +6,11 @@ the step's task maps, the goal, the action map with its tool and the IK, evaluat
 controller's own with kinematics only (no physics).
 One policy step, `act(q, qd, objects, goal, t=...)`:
 
-1. guards: a joint reading or object pose with NaN/inf, a missing object, a state older than
+1. guards: a joint reading, object pose or gripper width with NaN/inf, a missing object or gripper
+   width (a gripper task), a state older than
    `max_state_age` or not newer than the last one: hold (stop as fast as the limits allow) and report;
-2. features: the measured state written into the model (arm qpos and qvel, objects, goal markers,
-   the last suction command), `mj_kinematics` + `mj_comPos`, the env's step maps evaluated once;
+2. features: the measured state written into the model (arm qpos and qvel, objects, the gripper's
+   width, goal markers, the last tool command), `mj_kinematics` + `mj_comPos`, the env's step maps evaluated once;
    where the task observes its previous actions (`previous_actions = n`), the last n applied actions
    after them, newest first (zeros after `reset`; a held step applies none and keeps them);
 3. the policy (onnxruntime; normaliser inside); a non-finite action: hold and report; the action
@@ -47,12 +48,15 @@ from .safety import JOINT_LIMIT, JointLimiter
 #: Faults a step reports (`Cycle.faults`); those in HOLDS make it hold instead of acting.
 NONFINITE_STATE = "nonfinite_state"
 MISSING_OBJECT = "missing_object"
+MISSING_TOOL = "missing_tool"
 STALE_STATE = "stale_state"
 NONFINITE_GOAL = "nonfinite_goal"
 NONFINITE_ACTION = "nonfinite_action"
 GOAL_OUTSIDE_WORKSPACE = "goal_outside_workspace"
 WORKSPACE_CLIP = "workspace_clip"
-HOLDS = frozenset({NONFINITE_STATE, MISSING_OBJECT, STALE_STATE, NONFINITE_GOAL, NONFINITE_ACTION})
+HOLDS = frozenset(
+    {NONFINITE_STATE, MISSING_OBJECT, MISSING_TOOL, STALE_STATE, NONFINITE_GOAL, NONFINITE_ACTION}
+)
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,7 @@ class Cycle:
     qd: np.ndarray
     objects: dict[str, np.ndarray]
     goal: np.ndarray
+    tool_width: float | None = None  # the measured gripper width [m]
     observation: np.ndarray | None = None
     achieved_goal: np.ndarray | None = None
     desired_goal: np.ndarray | None = None
@@ -105,6 +110,7 @@ class Cycle:
     q_ik: np.ndarray | None = None
     q_target: np.ndarray | None = None
     suction: bool | None = None
+    tool: float | None = None  # the tool command (TaskInterface.tool)
     faults: tuple[str, ...] = ()
     info: dict[str, Any] = field(default_factory=dict)
 
@@ -181,6 +187,7 @@ class Controller:
         self._goal = np.zeros(interface.goal.dim)
         self._goal_set = False
         self._tool = self._tool_at_reset()
+        self._gripper = interface.measure_tool(self.data) is not None
         self._last_stamp: float | None = None
         self._goal_sampler: tuple[Randomizer, mujoco.MjData] | None = None
         self.last: Cycle | None = None
@@ -261,6 +268,7 @@ class Controller:
         *,
         t: float,
         stamp: float | None = None,
+        tool: float | None = None,
     ) -> np.ndarray:
         """One policy step at time t [s] from the state measured at `stamp` [s] (same clock; None: now).
 
@@ -270,6 +278,7 @@ class Controller:
                 qvel (linear [m/s] in world, angular [rad/s] in the body frame), world frame; one per
                 task object.
             goal: the desired goal (g,), or None to keep the last one.
+            tool: the gripper's measured opening width [m] (RobotState.tool); a gripper task needs it.
 
         Returns:
             The joint targets (n,) the limiter now moves toward (within the joint limits); the servo
@@ -284,12 +293,12 @@ class Controller:
         if not self._goal_set:
             raise InvalidConfig("no goal: pass goal= to act, reset or set_goal")
         objs = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in (objects or {}).items()}
-        cycle = Cycle(t, stamp, q, qd, objs, self._goal.copy())
+        cycle = Cycle(t, stamp, q, qd, objs, self._goal.copy(), _width(tool))
         self.last = cycle
         faults = self._guards(cycle)
         if faults:
             return self._hold(cycle, faults)
-        rows, achieved, desired = self._features(q, qd, objs)
+        rows, achieved, desired = self._features(q, qd, objs, cycle.tool_width)
         observation = self.interface.observation(rows)
         cycle.observation, cycle.achieved_goal, cycle.desired_goal = (
             observation.copy(),
@@ -314,7 +323,7 @@ class Controller:
             found.append(GOAL_OUTSIDE_WORKSPACE)
         q_ik = self._command(q, a, cycle, found)
         cycle.q_ik = q_ik.copy()
-        cycle.suction = self.suction
+        cycle.suction, cycle.tool = self.suction, self._tool
         q_target, clipped = self.limiter.set_target(q_ik, t)
         if clipped:
             found.append(JOINT_LIMIT)
@@ -328,17 +337,18 @@ class Controller:
         joint_positions: ArrayLike,
         joint_velocities: ArrayLike,
         objects: Mapping[str, ArrayLike] | None = None,
+        tool: float | None = None,
     ) -> dict[str, Any]:
-        """The task's goal info (is_success, distance [m], ...) of a measured state and the current goal,
-        without acting (e.g. after an episode's last step)."""
+        """The task's goal info (is_success, distance [m], ...) of a measured state (and gripper width
+        [m]) and the current goal, without acting (e.g. after an episode's last step)."""
         q = self._joints("joint_positions", joint_positions)
         qd = self._joints("joint_velocities", joint_velocities)
         objs = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in (objects or {}).items()}
-        cycle = Cycle(0.0, None, q, qd, objs, self._goal.copy())
+        cycle = Cycle(0.0, None, q, qd, objs, self._goal.copy(), _width(tool))
         faults = self._guards(cycle)
         if faults:
             return {"is_success": False, "faults": faults}
-        _, achieved, desired = self._features(q, qd, objs)
+        _, achieved, desired = self._features(q, qd, objs, cycle.tool_width)
         return self.interface.goal.outcome(achieved, desired)[1]
 
     def interpolate(self, t: float) -> np.ndarray:
@@ -385,6 +395,11 @@ class Controller:
                 faults.append(MISSING_OBJECT)
             elif not np.isfinite(pose).all():
                 faults.append(NONFINITE_STATE)
+        if self._gripper:
+            if cycle.tool_width is None:
+                faults.append(MISSING_TOOL)
+            elif not math.isfinite(cycle.tool_width):
+                faults.append(NONFINITE_STATE)
         if not np.isfinite(cycle.goal).all():
             faults.append(NONFINITE_GOAL)
         stamp = cycle.stamp
@@ -398,20 +413,24 @@ class Controller:
 
     def _hold(self, cycle: Cycle, faults: tuple[str, ...]) -> np.ndarray:
         cycle.q_target = self.limiter.hold(cycle.t)
-        cycle.suction = self.suction  # the tool command stays as it was
+        cycle.suction, cycle.tool = self.suction, self._tool  # the tool command stays as it was
         cycle.faults = faults
         return cycle.q_target.copy()
 
     def _features(
-        self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray]
+        self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray], width: float | None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The env's observation, achieved and desired goal (views) of a measured state: the state
         written into the controller's MjData, kinematics, every step map evaluated once."""
-        self._write_state(q, qd, objects)
+        self._write_state(q, qd, objects, width)
         return self.interface.observe(self.model, self.data)
 
-    def _write_state(self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray]) -> None:
+    def _write_state(
+        self, q: np.ndarray, qd: np.ndarray, objects: dict[str, np.ndarray], width: float | None
+    ) -> None:
         data = self.data
+        if width is not None:
+            self.interface.write_tool(data, width)
         data.qpos[self._qpos] = q
         data.qvel[self._dofs] = qd
         for body, (qadr, dadr) in self._objects.items():
@@ -450,3 +469,13 @@ class Controller:
             # the IK target is within the box already: it is the action part's bounds (ActionMap)
         cycle.ik_target = target.copy()
         return command.q_target
+
+
+def _width(tool: float | None) -> float | None:
+    """A measured gripper width as a float (NaN for a value that is not a number), or None."""
+    if tool is None:
+        return None
+    try:
+        return float(tool)
+    except (TypeError, ValueError):
+        return math.nan

@@ -151,11 +151,6 @@ def export_policy(
             f"task {task.name!r} places fixtures ({', '.join(f.body for f in task.fixtures)}) with the goal each "
             "episode; no robot backend measures them, so it cannot be exported for deployment"
         )
-    if task.action_spec.gripper:
-        raise InvalidConfig(
-            f"task {task.name!r} commands a gripper; the deployment runtime commands a suction cup only, so "
-            "it cannot be exported for deployment"
-        )
     if task.source is None:
         raise InvalidConfig(f"task {task.name!r} was built in code; export needs a task file")
     keys = tuple(cfg.agent.policy_inputs)
@@ -384,6 +379,28 @@ def _toml_value(value: Any) -> str:
     raise InvalidConfig(f"robot field value {value!r} cannot be written to robot.toml")
 
 
+def _tool(env: TaskEnv) -> dict[str, Any] | None:
+    """The contract's tool command: the action column, the actuator and the rule from action to its
+    control value (TaskInterface.tool), or None without a tool dimension."""
+    interface, spec = env.interface, env.action_map.spec
+    if interface.tool_ctrl is None:
+        return None
+    entry: dict[str, Any] = {
+        "column": env.action_map.dim - 1,
+        "actuator": env.model.actuator(interface.tool_ctrl).name,
+    }
+    if spec.suction:
+        return entry | {"kind": "suction", "rule": "1 (on) if a > 0 else 0 (off)"}
+    low, high = (float(v) for v in env.model.actuator_ctrlrange[interface.tool_ctrl])
+    rule = "high if a > 0 else low" if spec.gripper_open_close else "low + (a + 1) / 2 (high - low)"
+    return entry | {
+        "kind": "gripper",
+        "rule": rule,
+        "width_range_m": [low, high],
+        "measured": "the opening width [m] (gripperWidth of the actuator), RobotState.tool",
+    }
+
+
 def _contract(
     env: TaskEnv,
     cfg: TrainConfig,
@@ -499,6 +516,7 @@ def _contract(
             "parts": parts,
             "hold": [{"map": h.map, "value": list(h.value)} for h in action.spec.hold],
             "suction": {"column": action.dim - 1, "on_above": 0.0} if action.spec.suction else None,
+            "tool": _tool(env),
             "joint_step_rad": None if action.spec.uses_ik else action.spec.joint_step,
         },
         "workspace": workspace,

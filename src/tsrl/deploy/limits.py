@@ -29,6 +29,9 @@ BUILTIN_LIMITS: dict[str, tuple[tuple[float, ...], tuple[float, ...], str]] = {
         "speed and acceleration: Franka's published joint limits",
     ),
 }
+# The arms with the Franka Hand have their arm's joints and limits (the hand's width is its own command).
+BUILTIN_LIMITS["panda_gripper"] = BUILTIN_LIMITS["panda"]
+BUILTIN_LIMITS["ur5e_gripper"] = BUILTIN_LIMITS["ur5e"]
 
 
 def robot_limits(

@@ -244,7 +244,7 @@ def _episode(
         state = backend.read_state()
         t = backend.now()
         start = time.perf_counter()
-        q_target = controller.act(state.q, state.qd, state.objects, t=t, stamp=state.time)
+        q_target = controller.act(state.q, state.qd, state.objects, t=t, stamp=state.time, tool=state.tool)
         result.compute_s.append(time.perf_counter() - start)
         cycle = controller.last
         assert cycle is not None
@@ -259,7 +259,7 @@ def _episode(
                 command = q_target
             times.append(t_servo)
             commands.append(command)
-            backend.send(command, controller.suction)
+            backend.send(command, controller.tool)
             if tick == 0:
                 result.latency_s.append(time.perf_counter() - result.start_s[-1])
             backend.wait()
@@ -268,7 +268,7 @@ def _episode(
             log.cycle(index, step, cycle, times, commands, result.compute_s[-1], wall_t, result.latency_s[-1])
     result.timing = LoopTiming.of(result.start_s, result.latency_s, controller.control_period)
     state = backend.read_state()
-    info = controller.outcome(state.q, state.qd, state.objects)
+    info = controller.outcome(state.q, state.qd, state.objects, state.tool)
     result.success = bool(info.get("is_success", False))
     result.distance = float(info.get("distance", math.nan))
     if isinstance(backend, MujocoBackend):
@@ -325,7 +325,13 @@ def replay(
             continue
         n += 1
         q_target = controller.act(
-            record["q"], record["qd"], record["objects"], record["goal"], t=record["t"], stamp=record["stamp"]
+            record["q"],
+            record["qd"],
+            record["objects"],
+            record["goal"],
+            t=record["t"],
+            stamp=record["stamp"],
+            tool=record.get("tool_width"),
         )
         max_target = max(max_target, _difference(q_target, record["q_target"]))
         cycle = controller.last

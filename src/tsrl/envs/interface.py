@@ -74,6 +74,8 @@ class TaskInterface:
         self.tool_ctrl: int | None = bound_robot.suction_ctrl if spec.suction else None
         # width at a = -1 and per unit of the gripper command [m], or None
         self._gripper: tuple[float, float] | None = None
+        # the gripper servo's joints: (qpos address, dof address, gear x coefficient) each
+        self._finger_joints: list[tuple[int, int, float]] = []
         if spec.gripper:
             g = bound_robot.gripper_ctrl
             if g is None:
@@ -83,6 +85,7 @@ class TaskInterface:
             low, high = model.actuator_ctrlrange[g]
             self.tool_ctrl = g
             self._gripper = (float(low), float(high - low) / 2)
+            self._finger_joints = _transmission_joints(model, g)
         self.goal = Goal(task, model, self.robot.joints)
         self.plan = StepPlan(model, obs_spec, self.goal, self.action_map.ik_map, self.robot.joints)
         self.goal.check_relabelable(self.plan.obs_map)
@@ -148,6 +151,23 @@ class TaskInterface:
         result = self._ik.solve(self._ik_data, target, initial)  # a local solve from the current pose
         return Command(result.q, result.error_norm, target, tool)
 
+    def measure_tool(self, data: mujoco.MjData) -> float | None:
+        """The gripper's opening width [m] at the state in `data` (gripperWidth: the servo's
+        transmission length, sum of gear x coefficient x joint position); None without a gripper."""
+        if not self._finger_joints:
+            return None
+        return float(sum(k * data.qpos[qadr] for qadr, _, k in self._finger_joints))
+
+    def write_tool(self, data: mujoco.MjData, width: float) -> None:
+        """Writes a measured opening width [m] into `data`: every finger joint at the same position
+        (a symmetric grip, as a robot reports one width), at rest. No-op without a gripper."""
+        if not self._finger_joints:
+            return
+        q = width / sum(k for _, _, k in self._finger_joints)
+        for qadr, dadr, _ in self._finger_joints:
+            data.qpos[qadr] = q
+            data.qvel[dadr] = 0.0
+
     def tool(self, action: np.ndarray) -> float | None:
         """The tool actuator's control value for an action (k,): suction on (1) above 0, else off (0);
         a gripper's target width low + (a + 1) / 2 (high - low), or with `gripper_open_close` high
@@ -160,3 +180,16 @@ class TaskInterface:
         low, half_span = self._gripper
         command = (1.0 if a > 0 else -1.0) if self.task.action_spec.gripper_open_close else a
         return low + (command + 1.0) * half_span
+
+
+def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[tuple[int, int, float]]:
+    """(qpos address, dof address, gear x coefficient) of each joint an actuator's length sums: its
+    joint, or the joints of its fixed tendon (as gripperWidth reads them)."""
+    gear = float(model.actuator_gear[actuator, 0])
+    target = int(model.actuator_trnid[actuator, 0])
+    if int(model.actuator_trntype[actuator]) == int(mujoco.mjtTrn.mjTRN_TENDON):
+        adr, num = int(model.tendon_adr[target]), int(model.tendon_num[target])
+        terms = [(int(model.wrap_objid[k]), float(model.wrap_prm[k])) for k in range(adr, adr + num)]
+    else:
+        terms = [(target, 1.0)]
+    return [(int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), gear * c) for j, c in terms]
