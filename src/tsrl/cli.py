@@ -162,6 +162,10 @@ class Evaluate:
             raise InvalidConfig(
                 "--record writes rollouts on the run's own task; not with --env, --task or --perturb"
             )
+        if self.record is not None:
+            from .agents.demo_lerobot import import_pyarrow
+
+            import_pyarrow()  # missing: one line before the evaluation runs
         if self.out is not None and self.perturb is None:
             raise InvalidConfig("--out names the table of --perturb; give --perturb KEY=V1,V2,...")
         if self.out is not None and not (self.out.parent.is_dir() and os.access(self.out.parent, os.W_OK)):
@@ -196,10 +200,17 @@ class Evaluate:
             f"({round(r.success_rate * r.episodes)}/{r.episodes} episodes), "
             f"mean final distance {r.mean_final_distance:.4f} m"
         )
-        if self.record is not None:
-            from .agents.demo_lerobot import record_rollouts
+        if self.record is not None:  # the policy's rollouts, successful or not, on the run's own task
+            from .agents.demo_files import summary_line
+            from .agents.demo_lerobot import save_lerobot
+            from .agents.demonstrators import record_demos
 
-            print(record_rollouts(self.run_dir, self.record, self.episodes, self.seed))
+            run = load_config(self.run_dir)
+            seed = run.seed if self.seed is None else self.seed
+            rollouts = record_demos(
+                run.env_id, self.episodes, policy=self.run_dir, seed=seed, keep_failed=True
+            )
+            print(summary_line(rollouts, save_lerobot(rollouts, self.record, run)))
         return 0
 
 

@@ -41,7 +41,7 @@ import json
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
@@ -51,9 +51,6 @@ from ..envs.observations import PREVIOUS_ACTIONS
 from ..exceptions import InvalidConfig, TsrlError
 from ..files import replacing
 from .config import TrainConfig
-
-if TYPE_CHECKING:
-    from .demo_files import Demonstrations
 
 CODEBASE_VERSION = "v3.0"
 #: The key of meta/info.json that holds what tsrl needs besides LeRobot's fields.
@@ -105,40 +102,44 @@ def unit(feature: str) -> str | None:
     return _UNITS.get(symbol)
 
 
-def save_lerobot(demos: Demonstrations, path: Path | str, recorded_with: TrainConfig) -> Path:
-    """Writes `demos` as the LeRobot dataset folder `path` (write_lerobot). Returns the path."""
-    from .demo_files import ARRAYS
+class DemoArrays(Protocol):
+    """What the writer reads of demonstrations: tsrl.agents.demo_files.Demonstrations (shapes there)."""
 
-    return write_lerobot({name: getattr(demos, name) for name in ARRAYS}, demos.meta, path, recorded_with)
-
-
-def record_rollouts(run_dir: Path | str, path: Path | str, episodes: int, seed: int | None = None) -> str:
-    """Writes `episodes` deterministic episodes of a run's latest policy (successful or not, on its own
-    task, at demonstration seeds of `seed`, default the run's) as the LeRobot dataset folder `path`;
-    returns the summary line (demo_files.summary_line)."""
-    from .demo_files import summary_line
-    from .demonstrators import record_demos
-    from .run_folder import load_config
-
-    import_pyarrow()  # missing: one line before the episodes run
-    cfg = load_config(run_dir)
-    rollouts = record_demos(
-        cfg.env_id, episodes, policy=run_dir, seed=cfg.seed if seed is None else seed, keep_failed=True
-    )
-    return summary_line(rollouts, save_lerobot(rollouts, path, cfg))
+    @property
+    def observation(self) -> np.ndarray: ...
+    @property
+    def achieved_goal(self) -> np.ndarray: ...
+    @property
+    def desired_goal(self) -> np.ndarray: ...
+    @property
+    def actions(self) -> np.ndarray: ...
+    @property
+    def rewards(self) -> np.ndarray: ...
+    @property
+    def is_success(self) -> np.ndarray: ...
+    @property
+    def seeds(self) -> np.ndarray: ...
+    @property
+    def meta(self) -> dict[str, Any]: ...
 
 
-def write_lerobot(
-    arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any], path: Path | str, recorded_with: TrainConfig
-) -> Path:
-    """Writes demonstrations (the arrays of demo_files.ARRAYS and their meta) as the LeRobot dataset
-    folder `path`, on the environment `recorded_with` makes (it must be the one they were recorded on:
-    its layout and task file go into the metadata). Written whole, then renamed into place; a tsrl
-    dataset already there is replaced, any other existing path is refused. Returns the path."""
+def save_lerobot(demos: DemoArrays, path: Path | str, recorded_with: TrainConfig) -> Path:
+    """Writes demonstrations as the LeRobot dataset folder `path`, on the environment `recorded_with`
+    makes (it must be the one they were recorded on: its layout and task file go into the metadata).
+    Written whole, then renamed into place; a tsrl dataset already there is replaced, any other
+    existing path is refused. Returns the path."""
     pa, pq = import_pyarrow()
     path = Path(path)
     if path.exists() and not _written_by_tsrl(path):
         raise InvalidConfig(f"{path} exists and is not a tsrl LeRobot dataset; remove it or write elsewhere")
+    meta = demos.meta
+    arrays = {
+        **{key: getattr(demos, key) for key in OBS_KEYS},
+        "actions": demos.actions,
+        "rewards": demos.rewards,
+        "is_success": demos.is_success,
+        "seeds": demos.seeds,
+    }
     env = gym.make(recorded_with.gym_id, **recorded_with.env_kwargs)
     try:
         layout = _layout(env, arrays, meta)
@@ -320,15 +321,16 @@ def _concat(tables: list[Any]) -> Any:
 def _layout(env: gym.Env, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> dict[str, Any]:
     """What the dataset records of the environment: robot, task string and file, control period, the
     observation's and goals' rows; refused unless the demonstrations' shapes and meta are its own."""
-    from .demo_files import DemoSpec
-
-    spec = DemoSpec.of(env)
-    dims = (arrays["observation"].shape[2], arrays["desired_goal"].shape[2], arrays["actions"].shape[2])
-    got = (meta["env_id"], meta["obs_spec"], meta["action"], *dims)
-    want = (spec.env_id, spec.obs_spec, spec.action, spec.obs_dim, spec.goal_dim, spec.action_dim)
+    base: Any = env.unwrapped  # a TaskEnv: recorded_with is a tsrl environment's config
+    space = base.observation_space
+    got = tuple(meta[k] for k in ("env_id", "obs_spec", "action")) + tuple(
+        arrays[k].shape[2:] for k in ("observation", "desired_goal", "actions")
+    )
+    want = (env.spec.id if env.spec is not None else None, base.obs_spec, base.action_mode) + tuple(
+        s.shape for s in (space["observation"], space["desired_goal"], base.action_space)
+    )
     if got != want:
         raise InvalidConfig(f"demonstrations of {got} written on another environment {want}")
-    base: Any = env.unwrapped  # a TaskEnv (DemoSpec.of checked)
     task = base.task
     source = Path(task.source) if task.source is not None else None
     text = source.read_text(encoding="utf-8") if source is not None and source.is_file() else None
