@@ -1,6 +1,8 @@
 """Every benchmark table with committed data (docs/results/benchmarks/NAME/meta.json, written by a
 benchmark's `--save`), re-derived from its data by its renderer and compared with the doc's copy
-between the markers BEGIN and END; --write puts the derived tables into the docs. Exits 1 when a doc's
+between the markers BEGIN and END; --write puts the derived tables into the docs. A table's doc is the
+page that holds its markers (README.md, docs/*.md, studies/*/README.md; pages move), else the one its
+meta.json names. Exits 1 when a doc's
 table differs from what its data give, or a doc has a marked table without data (make reproduce-check).
 
     python scripts/benchmark_tables.py [--write]
@@ -38,6 +40,24 @@ def load_module(script: str) -> ModuleType:
     return module
 
 
+def pages(root: Path = ROOT) -> list[Path]:
+    """The pages that may hold a benchmark table."""
+    return [
+        root / "README.md",
+        *sorted((root / "docs").glob("*.md")),
+        *sorted((root / "studies").glob("*/README.md")),
+    ]
+
+
+def located(name: str, meta_doc: str, root: Path = ROOT) -> str:
+    """The repository path of the page holding NAME's BEGIN marker, else `meta_doc`."""
+    begin = BEGIN.format(name=name)
+    return next(
+        (p.relative_to(root).as_posix() for p in pages(root) if p.exists() and begin in p.read_text()),
+        meta_doc,
+    )
+
+
 def derived_tables(data_root: Path = DATA_ROOT) -> dict[str, tuple[str, list[str]]]:
     """NAME -> (doc path, the table's markdown lines re-derived from docs/results/benchmarks/NAME/),
     and INDEX_NAME -> the index of them all in docs/results/benchmarks/README.md."""
@@ -46,7 +66,8 @@ def derived_tables(data_root: Path = DATA_ROOT) -> dict[str, tuple[str, list[str
         meta = json.loads(meta_path.read_text())
         script, _, function = meta["table"].rpartition(":")  # "path:function", or a function of the script
         render: Callable[[Path], list[str]] = getattr(load_module(script or meta["script"]), function)
-        out[meta_path.parent.name] = (meta["doc"], render(meta_path.parent))
+        name = meta_path.parent.name
+        out[name] = (located(name, meta["doc"]), render(meta_path.parent))
     out[INDEX_NAME] = (INDEX.relative_to(ROOT).as_posix(), index_table(data_root))
     return out
 
@@ -69,7 +90,8 @@ def index_table(data_root: Path = DATA_ROOT) -> list[str]:
     ]
     for meta_path in sorted(data_root.glob("*/meta.json")):
         meta = json.loads(meta_path.read_text())
-        name, doc = meta_path.parent.name, meta["doc"]
+        name = meta_path.parent.name
+        doc = located(name, meta["doc"])
         load = meta["machine"].get("load_average_at_start") or meta["machine"].get("load_average")
         load_text = f"{load[0]:g}" if isinstance(load, list) else str(load)
         commit = str(meta["commit"])
@@ -84,7 +106,7 @@ def problems(tables: dict[str, tuple[str, list[str]]], root: Path = ROOT) -> lis
     """One line per doc table that differs from its data, and per marked table without data."""
     found = []
     docs = {doc for doc, _ in tables.values()} | {
-        p.relative_to(root).as_posix() for p in (root / "docs").glob("*.md")
+        p.relative_to(root).as_posix() for p in pages(root) if p.exists()
     }
     for doc in sorted(docs):
         text = (root / doc).read_text()

@@ -31,10 +31,16 @@ SKIP = re.compile(r"^<!-- docs-test: skip, (?P<reason>\S.*?) -->$")
 #: (file, a line of the block) -> code run after it in its namespace.
 AFTER = {
     # The map is evaluated on computed kinematics: tcp - target in world coordinates, nonzero.
-    ("README.md", 'y, J = tsrl.parse_spec("positionDiff(tcp, target)", model)(model, data)'): (
+    ("docs/index.md", 'y, J = tsrl.parse_spec("positionDiff(tcp, target)", model)(model, data)'): (
         "import numpy as np\n"
         "np.testing.assert_allclose(y, data.site('tcp').xpos - data.site('target').xpos)\n"
         "assert np.linalg.norm(y) > 0.01 and np.abs(J).max() > 0.01, (y, J)\n"
+    ),
+    # The quickstart's run trained to its budget and evaluated on the way.
+    ("README.md", "run = train(TrainConfig("): (
+        "import csv\n"
+        "rows = list(csv.DictReader(open(run / 'progress.csv')))\n"
+        "assert rows and int(rows[-1]['env_steps']) == 1000, rows[-1:]\n"
     ),
 }
 
