@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 # Off-screen GL backend found to work by scripts/setup.sh (egl, else osmesa); override on the command line.
 export MUJOCO_GL ?= $(shell cat $(VENV)/mujoco_gl 2>/dev/null || echo egl)
 
-.PHONY: install demo render-demo test lint type bench reproduce-check
+.PHONY: install demo render-demo test lint type docs bench reproduce-check
 
 install: $(VENV)/.installed
 
@@ -26,6 +26,9 @@ lint:
 
 type:  ## mypy over src/tsrl ([tool.mypy] in pyproject.toml)
 	$(BIN)/mypy
+
+docs: install  ## the docs site (mkdocs.yml) into site/, strict: a broken link, anchor or API reference fails
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 reproduce-check: install  ## re-derives from the committed data (docs/results/): every study's comparisons, the README's across-study table, every benchmark table
 	$(BIN)/python scripts/readme_comparisons.py --check

@@ -1,0 +1,55 @@
+"""MkDocs hook: links from a docs page to a file of the repository outside docs/ (a study's README, a
+source file, an example) must point at a file that exists, or the strict build fails; with `repo_url`
+set in mkdocs.yml they become links to it, otherwise the path is shown as code (the site holds only
+docs/)."""
+
+from __future__ import annotations
+
+import logging
+import posixpath
+import re
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("mkdocs.plugins.tsrl_repo_links")
+LINK = re.compile(r"(?<!!)\[(?P<text>[^\]]*)\]\((?P<target>[^)\s]+)\)")
+FENCE = re.compile(r"^\s*(```|~~~)")
+
+
+def _rewrite(line: str, page_dir: str, repo: Path, docs: str, repo_url: str | None, page: str) -> str:
+    def one(m: re.Match[str]) -> str:
+        target = m["target"]
+        if re.match(r"[a-z][a-z0-9+.-]*:", target) or target.startswith("#"):
+            return m[0]
+        file, _, anchor = target.partition("#")
+        path = posixpath.normpath(posixpath.join(docs, page_dir, file))  # relative to the repository
+        if path == docs or path.startswith(docs + "/"):  # a docs page or file: MkDocs checks it
+            inside = posixpath.relpath(path, posixpath.join(docs, page_dir) if page_dir else docs)
+            return (
+                f"[{m['text']}]({inside}{'#' + anchor if anchor else ''})"  # e.g. ../../../docs/x.md -> x.md
+            )
+        if path.startswith("..") or not (repo / path).exists():
+            log.warning("Doc file '%s' links to '%s', which is not a file of the repository", page, target)
+            return m[0]
+        if repo_url:
+            kind = "tree" if (repo / path).is_dir() else "blob"
+            return f"[{m['text']}]({repo_url.rstrip('/')}/{kind}/main/{path}{'#' + anchor if anchor else ''})"
+        return f"{m['text']} (`{path}`)"
+
+    return LINK.sub(one, line)
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    repo = Path(config["config_file_path"]).parent
+    docs = Path(config["docs_dir"]).relative_to(repo).as_posix()
+    page_dir = posixpath.dirname(page.file.src_uri)
+    out, fenced = [], False
+    for line in markdown.split("\n"):
+        if FENCE.match(line):
+            fenced = not fenced
+        out.append(
+            line
+            if fenced
+            else _rewrite(line, page_dir, repo, docs, config.get("repo_url"), page.file.src_uri)
+        )
+    return "\n".join(out)
