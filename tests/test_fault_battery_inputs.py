@@ -135,3 +135,69 @@ def test_a_goal_box_beyond_the_arms_reach_is_one_line_even_without_action_bounds
         "2.10 m from the arm's first joint",
         "'tool' reaches at most 0.80 m",
     )
+
+
+# -- demonstrations carry their task's identity and the task's rewards ---------------------------
+@pytest.fixture(scope="module")
+def reach_demos(tmp_path_factory):
+    """Two scripted episodes on a copy of the reach's task file, saved as .npz."""
+    from tsrl.agents.demo_files import save_demos
+    from tsrl.agents.demonstrators import record_demos
+
+    folder = tmp_path_factory.mktemp("demos")
+    task = _task(
+        folder,
+        REACH.replace('name = "UR5eReach-v0"', 'name = "MyReach"\nsolver = "UR5eReach-v0"'),
+        "my_reach.toml",
+    )
+    demos = record_demos(str(task), 2)
+    assert demos.meta["task_sha256"] and demos.n_episodes == 2
+    return task, demos, save_demos(demos, folder / "reach.npz")
+
+
+def _train_with_demos(task: Path, demos: Path, out: Path):
+    return run_tsrl(
+        "train", "--task", str(task), "--demos", str(demos), "--total-timesteps", "100", "--out-dir", str(out)
+    )
+
+
+def test_demonstrations_of_another_task_file_with_the_same_observation_are_refused(reach_demos, tmp_path):
+    _, _, demos = reach_demos
+    other = _task(
+        tmp_path, REACH.replace("half_extent = [0.15, 0.15, 0.15]", "half_extent = [0.05, 0.05, 0.05]")
+    )
+    _refused(
+        _train_with_demos(other, demos, tmp_path / "out"), str(demos), "task file sha256", "another task file"
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_demonstrations_whose_rewards_are_not_the_tasks_are_refused(reach_demos, tmp_path):
+    import dataclasses
+
+    import numpy as np
+
+    from tsrl.agents.demo_files import save_demos
+
+    task, demos, _ = reach_demos
+    edited = save_demos(
+        dataclasses.replace(demos, rewards=np.full_like(demos.rewards, 7.0)), tmp_path / "r.npz"
+    )
+    _refused(_train_with_demos(task, edited, tmp_path / "out"), "rewards are not the task's", "stored 7")
+
+
+def test_demonstrations_without_a_task_hash_still_load(reach_demos, tmp_path):
+    import dataclasses
+
+    import gymnasium as gym
+
+    from tsrl.agents.demo_files import DemoSpec, load_demos, save_demos
+    from tsrl.envs import TASK_ENV_ID
+
+    _, demos, _ = reach_demos  # a file from before the hash was kept: another task file is not told apart
+    old = {k: v for k, v in demos.meta.items() if k != "task_sha256"}
+    path = save_demos(dataclasses.replace(demos, meta=old), tmp_path / "old.npz")
+    other = _task(
+        tmp_path, REACH.replace("half_extent = [0.15, 0.15, 0.15]", "half_extent = [0.05, 0.05, 0.05]")
+    )
+    assert load_demos(path, DemoSpec.of(gym.make(TASK_ENV_ID, task=str(other)))).n_episodes == 2

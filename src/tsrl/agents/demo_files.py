@@ -13,7 +13,7 @@ One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N
 
 | array | shape | dtype | meaning |
 | --- | --- | --- | --- |
-| meta | () | str | JSON: format "tsrl-demos", version, env_id, obs (as given), obs_spec (the env's), action (mode), demonstrator, tsrl_version, attempted (episodes run), kept |
+| meta | () | str | JSON: format "tsrl-demos", version, env_id, obs (as given), obs_spec (the env's), action (mode), task_sha256 (of the task file's bytes; absent in older files), demonstrator, tsrl_version, attempted (episodes run), kept |
 | observation | (N, T+1, d) | float64 | `observation` at reset and after each step |
 | achieved_goal | (N, T+1, g) | float64 | |
 | desired_goal | (N, T+1, g) | float64 | |
@@ -23,7 +23,10 @@ One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N
 | seeds | (N,) | int64 | `env.reset(seed=...)` of each episode |
 
 Every episode has the environment's full length (T steps, ended by its time limit); an episode cut
-short (a physics blow-up) is dropped while recording.
+short (a physics blow-up) is dropped while recording. A file whose task_sha256 is not that of the
+training task's file (recorded on another task file with the same observation), or whose rewards are
+not the task's own (recomputed with the env's compute_reward from the stored goals), is refused when
+a run starts (demo_record).
 """
 
 from __future__ import annotations
@@ -78,6 +81,8 @@ class DemoSpec:
     obs_dim: int
     goal_dim: int
     action_dim: int
+    task_sha256: str | None = None
+    """The sha256 of the task file's bytes (None: a task built in code, or a file from before it was kept)."""
 
     @classmethod
     def of(cls, env: gym.Env) -> DemoSpec:
@@ -95,6 +100,7 @@ class DemoSpec:
             obs_dim=int(np.prod(space["observation"].shape or ())),
             goal_dim=int(np.prod(space["desired_goal"].shape or ())),
             action_dim=int(base.action_space.shape[0]),
+            task_sha256=_task_sha256(tsrl_env.task.source),
         )
 
 
@@ -133,6 +139,7 @@ class Demonstrations:
             self.observation.shape[2],
             self.desired_goal.shape[2],
             self.actions.shape[2],
+            m.get("task_sha256"),
         )
 
 
@@ -250,8 +257,45 @@ def _check_spec(path: Path, got: DemoSpec, expect: DemoSpec) -> None:
         for name in ("env_id", "obs_spec", "action", "obs_dim", "goal_dim", "action_dim")
         if getattr(got, name) != getattr(expect, name)
     ]
+    if (
+        got.task_sha256 is not None
+        and expect.task_sha256 is not None
+        and got.task_sha256 != expect.task_sha256
+    ):
+        diffs.append(
+            f"task file sha256 {got.task_sha256[:12]} (this run's task file: {expect.task_sha256[:12]}; "
+            "recorded on another task file)"
+        )
     if diffs:
         raise DemoFileError(path, "recorded for another environment: " + "; ".join(diffs))
+
+
+def _task_sha256(source: Path | None) -> str | None:
+    """The sha256 of a task file's bytes; None for a task built in code."""
+    return None if source is None else hashlib.sha256(Path(source).read_bytes()).hexdigest()
+
+
+def check_rewards(path: Path | str, demos: Demonstrations, env: gym.Env) -> None:
+    """Raises DemoFileError unless the stored rewards are the task's: `env`'s compute_reward of each
+    step's achieved and desired goals (after the step), to float32 rounding."""
+    if not demos.n_transitions:
+        return
+    base: Any = env.unwrapped  # a tsrl TaskEnv (DemoSpec.of checked it)
+    g = demos.achieved_goal.shape[2]
+    achieved = demos.achieved_goal[:, 1:].reshape(-1, g)
+    desired = demos.desired_goal[:, 1:].reshape(-1, g)
+    expected = np.asarray(base.compute_reward(achieved, desired, None), dtype=np.float32)
+    stored = demos.rewards.reshape(-1).astype(np.float32)
+    wrong = ~np.isclose(stored, expected, rtol=1e-5, atol=1e-5)
+    if wrong.any():
+        first = int(np.argmax(wrong))
+        episode, step = divmod(first, demos.episode_steps)
+        raise DemoFileError(
+            path,
+            f"rewards are not the task's: {int(wrong.sum())} of {wrong.size} differ from compute_reward of "
+            f"the stored goals (first: episode {episode} step {step}, stored {stored[first]:g}, "
+            f"the task's {expected[first]:g})",
+        )
 
 
 def sha256(path: Path | str) -> str:
@@ -277,6 +321,7 @@ def demo_record(cfg: TrainConfig) -> dict[str, Any] | None:
     env = gym.make(cfg.gym_id, **cfg.env_kwargs)
     try:
         demos = load_demos(path, DemoSpec.of(env))
+        check_rewards(path, demos, env)
     finally:
         env.close()
     return {

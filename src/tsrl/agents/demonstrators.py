@@ -112,6 +112,7 @@ def record_demos(
         "obs": obs,
         "obs_spec": spec.obs_spec,
         "action": spec.action,
+        "task_sha256": spec.task_sha256,
         "demonstrator": demonstrator.name,
         "tsrl_version": _tsrl_version(),
         "recording_seed": seed,
