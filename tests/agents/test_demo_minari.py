@@ -248,7 +248,8 @@ def _cut(root: Path) -> Path:
 @pytest.mark.parametrize(
     ("damage", "expected"),
     [
-        (lambda p: _meta(p, env_id="tsrl/UR5ePickPlace-v0"), "env_id 'tsrl/UR5ePickPlace-v0' (this run: 'tsrl/UR5eReach-v0')"),
+        (lambda p: _meta(p, env_id="tsrl/UR5ePickPlace-v0"), "env_spec has env_id 'tsrl/UR5eReach-v0' but its tsrl metadata 'tsrl/UR5ePickPlace-v0'"),
+        (lambda p: _meta(p, obs="fs0"), "env_spec has obs 'fs1' but its tsrl metadata 'fs0'"),
         (lambda p: _meta(p, obs_spec="position(tcp)"), "recorded for another environment: obs_spec 'position(tcp)'"),
         (lambda p: _edit(p, 1, _set("observations/observation", (7, 0), np.nan)), "observation holds NaN or inf (episode 1)"),
         (lambda p: _edit(p, 2, _set("actions", (3, 1), np.inf)), "actions holds NaN or inf (episode 2)"),

@@ -139,6 +139,7 @@ def read_minari(
         raise MinariDemoError(f"unreadable Minari dataset {data}: {err!r}") from None
     if META_KEY in metadata:
         meta = metadata[META_KEY]
+        _check_env_spec(dataset.env_spec, meta)
     else:
         meta = {
             **file_format,
@@ -218,6 +219,21 @@ def _written_by_tsrl(path: Path) -> bool:
     except (MinariDemoError, OSError, ValueError, KeyError):
         return False
     return META_KEY in metadata
+
+
+def _check_env_spec(env_spec: gym.envs.registration.EnvSpec | None, meta: Any) -> None:
+    """Raises MinariDemoError where the dataset's EnvSpec (id, obs, action) contradicts its tsrl meta."""
+    if env_spec is None or not isinstance(meta, dict):
+        return
+    told = {"env_id": env_spec.id} | {
+        key: env_spec.kwargs[key] for key in ("obs", "action") if key in env_spec.kwargs
+    }
+    for key, value in told.items():
+        if key in meta and meta[key] != value:
+            raise MinariDemoError(
+                f"its env_spec has {key} {value!r} but its tsrl metadata {meta[key]!r}: it contradicts "
+                "itself (edited?); record it again"
+            )
 
 
 def _meta_from_env(env_spec: gym.envs.registration.EnvSpec | None, n: int) -> dict[str, Any]:
