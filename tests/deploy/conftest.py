@@ -19,10 +19,12 @@ def build_export(
     env_id: str = "tsrl/UR5eReach-v0",
     obs: str = "fs1",
     seed: int = 0,
+    limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
     **agent: Any,
 ) -> tuple[Path, Any, Any, TrainConfig]:
     """An untrained DDPG/TD3/SAC policy of `env_id` with random normaliser statistics, exported to
-    `out`; returns (out, model, normalizer, config)."""
+    `out` (`limits`: joint speed and acceleration limits for an arm that is not built in); returns
+    (out, model, normalizer, config)."""
     from tsrl.agents.factory import make_agent, make_vec_env
     from tsrl.deploy.export import export_policy
 
@@ -40,7 +42,7 @@ def build_export(
         rms.mean = rng.normal(0.0, 0.3, rms.mean.shape)
         rms.var = rng.uniform(0.01, 2.0, rms.var.shape)
     venv.training = False
-    export_policy(model, venv, cfg, out)
+    export_policy(model, venv, cfg, out, None, *(limits or (None, None)))
     return out, model, venv, cfg
 
 

@@ -56,7 +56,7 @@ from .contract import (
     previous_action_rows,
     sha256,
 )
-from .exported import exported_env, model_bytes
+from .exported import exported_env, model_difference
 from .limits import robot_limits
 
 #: The largest difference between onnxruntime's and torch's actions an export accepts.
@@ -287,10 +287,12 @@ def _check(
     from .policy import OnnxPolicy
 
     again = exported_env(folder, contract)
-    if model_bytes(again.model) != model_bytes(env.model):
+    differs = model_difference(again.model, env.model)
+    if differs is not None:
         raise InvalidConfig(
             f"the copies of {contract['task']['scene']} compile to another model than the training scene "
-            "(a file it reads was not found); give the task a scene in one MJCF file"
+            f"(its {differs} differs: a file it reads was not copied); give the task a scene whose files "
+            "are named in its MJCF (includes, meshdir/texturedir)"
         )
     again.close()
     observations = task_observations(env, _CHECK_STEPS)
@@ -379,6 +381,18 @@ def _toml_value(value: Any) -> str:
     raise InvalidConfig(f"robot field value {value!r} cannot be written to robot.toml")
 
 
+def _joint_limits(env: TaskEnv) -> np.ndarray:
+    """The joints' position limits (n, 2): each joint's range, or for a joint without one (an unlimited
+    hinge), its servo's control range (tsrl gives an added servo +-2 pi: docs/robots.md), which no
+    command of the training environment left either."""
+    robot, m = env.bound_robot, env.model
+    limits = np.array(robot.joint_range, dtype=np.float64)
+    for i, ctrl in enumerate(np.arange(m.nu)[robot.ctrl]):
+        if not np.isfinite(limits[i]).all() and m.actuator_ctrllimited[ctrl]:
+            limits[i] = m.actuator_ctrlrange[ctrl]
+    return limits
+
+
 def _tool(env: TaskEnv) -> dict[str, Any] | None:
     """The contract's tool command: the action column, the actuator and the rule from action to its
     control value (TaskInterface.tool), or None without a tool dimension."""
@@ -455,7 +469,7 @@ def _contract(
             "name": robot.name,
             "joints": list(robot.joints),
             "joint_units": joint_units,
-            "joint_limits": env.bound_robot.joint_range.tolist(),
+            "joint_limits": _joint_limits(env).tolist(),
             "home_q": robot.home_q(m).tolist(),
             "tcp": {
                 "frame": robot.tcp,

@@ -85,8 +85,44 @@ def check_env_matches(env: TaskEnv | TaskInterface, contract: dict[str, Any]) ->
             )
 
 
-def model_bytes(model: mujoco.MjModel) -> bytes:
-    """A compiled model as MJB bytes (two models compiled from the same inputs give the same bytes)."""
-    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
-    mujoco.mj_saveModel(model, None, buffer)
-    return buffer.tobytes()
+#: MjModel fields that say where its asset files were read from, not what the model is (MuJoCo 4
+#: keeps each asset's absolute path; an export's copies live elsewhere), and the buffer size they add to.
+_PATH_FIELDS = frozenset(
+    {"paths", "npaths", "nbuffer", "mesh_pathadr", "skin_pathadr", "hfield_pathadr", "tex_pathadr"}
+)
+
+
+def model_difference(a: mujoco.MjModel, b: mujoco.MjModel) -> str | None:
+    """The first field in which two compiled models differ (sizes, options, every array, names, bit for
+    bit; NaN equal to NaN), or None when they are the same model; where asset files were read from is
+    not compared (_PATH_FIELDS)."""
+    for name in sorted(dir(a)):
+        if name.startswith("_") or name in _PATH_FIELDS:
+            continue
+        x, y = getattr(a, name), getattr(b, name)
+        if callable(x):
+            continue
+        if isinstance(x, np.ndarray):
+            if (
+                x.shape != y.shape
+                or x.dtype != y.dtype
+                or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f")
+            ):
+                return name
+        elif isinstance(x, int | float | bytes | str) and x != y:
+            return name
+    for group in ("opt", "vis", "stat"):
+        if _struct_bytes(getattr(a, group)) != _struct_bytes(getattr(b, group)):
+            return group
+    return None
+
+
+def _struct_bytes(struct: object) -> bytes:
+    """A MuJoCo option/visual/statistic struct's contents, as the repr of its public fields."""
+    return repr(
+        [
+            (k, np.asarray(v).tolist() if isinstance(v, np.ndarray) else repr(v))
+            for k in sorted(dir(struct))
+            if not k.startswith("_") and not callable(v := getattr(struct, k))
+        ]
+    ).encode()
