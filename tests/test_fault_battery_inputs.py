@@ -201,3 +201,24 @@ def test_demonstrations_without_a_task_hash_still_load(reach_demos, tmp_path):
         tmp_path, REACH.replace("half_extent = [0.15, 0.15, 0.15]", "half_extent = [0.05, 0.05, 0.05]")
     )
     assert load_demos(path, DemoSpec.of(gym.make(TASK_ENV_ID, task=str(other)))).n_episodes == 2
+
+
+# -- an experiment file's [[evaluate]] errors name its keys, not the command line's flags ----------
+@pytest.mark.parametrize(
+    ("perturb", "words"),
+    [
+        ('{ key = "action_latency", values = [60] }', ["[evaluate[0]] perturbation action_latency=60", "0 to 49"]),
+        ('{ key = "object_friction", values = [0] }', ["[evaluate[0].perturb]", "object_friction = 0", "> 0"]),
+    ],
+)  # fmt: skip
+def test_an_experiment_files_bad_perturbation_names_the_file_and_key_not_the_flag(tmp_path, perturb, words):
+    definition = _task(
+        tmp_path,
+        'env = ["tsrl/UR5eReach-v0"]\nobs = ["fs1"]\nseeds = [0]\ntotal_timesteps = 200\n\n[[evaluate]]\n'
+        f'name = "bad"\narm = "fs1"\nenv = "tsrl/UR5eReach-v0"\nepisodes = 3\nperturb = {perturb}\n',
+        "exp.toml",
+    )
+    line = _refused(
+        run_tsrl("experiment", str(definition), "--out-dir", str(tmp_path / "out")), str(definition), *words
+    )
+    assert "--perturb" not in line and not (tmp_path / "out").exists()
