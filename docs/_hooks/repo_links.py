@@ -1,7 +1,7 @@
 """MkDocs hook: links from a docs page to a file of the repository outside docs/ (a study's README, a
-source file, an example) must point at a file that exists, or the strict build fails; with `repo_url`
-set in mkdocs.yml they become links to it, otherwise the path is shown as code (the site holds only
-docs/)."""
+source file, an example), or to a folder without a README, must point at something that exists, or
+the strict build fails; with `repo_url` set in mkdocs.yml they become links to it, otherwise the path
+is shown as code (the site holds only docs/ pages and files). A folder with a README links to it."""
 
 from __future__ import annotations
 
@@ -23,7 +23,13 @@ def _rewrite(line: str, page_dir: str, repo: Path, docs: str, repo_url: str | No
             return m[0]
         file, _, anchor = target.partition("#")
         path = posixpath.normpath(posixpath.join(docs, page_dir, file))  # relative to the repository
-        if path == docs or path.startswith(docs + "/"):  # a docs page or file: MkDocs checks it
+        if file.endswith("/") and not (repo / path).is_dir():
+            log.warning("Doc file '%s' links to the folder '%s', which the repository lacks", page, target)
+            return m[0]
+        if (repo / path).is_dir() and (repo / path / "README.md").exists():
+            path += "/README.md"  # a folder with its README, as GitHub shows it: the page
+        inside_docs = path == docs or path.startswith(docs + "/")
+        if inside_docs and not (repo / path).is_dir():  # a docs page or file: MkDocs checks it
             inside = posixpath.relpath(path, posixpath.join(docs, page_dir) if page_dir else docs)
             return (
                 f"[{m['text']}]({inside}{'#' + anchor if anchor else ''})"  # e.g. ../../../docs/x.md -> x.md
