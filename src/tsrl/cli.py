@@ -333,10 +333,17 @@ class Demos:
     """Seed of the episode seeds."""
     keep_failed: bool = False
     """Keep unsuccessful episodes too."""
+    camera: Annotated[str | None, arg(metavar="NAME")] = None
+    """With --format lerobot: also this camera's frames as video, the episodes replayed and rendered
+    (a camera of the task's model, or workspace: the view `tsrl render` uses without --camera)."""
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
             raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
+        if self.camera is not None and self.format != "lerobot":
+            raise InvalidConfig(
+                f"--camera: video goes into a LeRobot dataset (--format lerobot); got --format {self.format}"
+            )
 
     def run(self) -> int:
         from .agents.demo_files import save_demos, summary_line
@@ -359,7 +366,7 @@ class Demos:
         if self.format == "lerobot":  # the layout and task file from the env they were recorded on
             run = load_config(self.policy) if self.policy is not None else None
             source = TrainConfig(env_id=self.env, obs=self.obs, action=self.action) if run is None else run
-            print(summary_line(demos, save_lerobot(demos, self.out, source)))
+            print(summary_line(demos, save_lerobot(demos, self.out, source, self.camera)))
             return 0
         for path in paths[self.format]:
             print(summary_line(demos, save_demos(demos, path)))

@@ -51,6 +51,7 @@ from ..envs.observations import PREVIOUS_ACTIONS
 from ..exceptions import InvalidConfig, TsrlError
 from ..files import replacing
 from .config import TrainConfig
+from .lerobot_video import VIDEO_PATH, video_key, write_camera_video
 
 CODEBASE_VERSION = "v3.0"
 #: The key of meta/info.json that holds what tsrl needs besides LeRobot's fields.
@@ -123,9 +124,12 @@ class DemoArrays(Protocol):
     def meta(self) -> dict[str, Any]: ...
 
 
-def save_lerobot(demos: DemoArrays, path: Path | str, recorded_with: TrainConfig) -> Path:
+def save_lerobot(
+    demos: DemoArrays, path: Path | str, recorded_with: TrainConfig, camera: str | None = None
+) -> Path:
     """Writes demonstrations as the LeRobot dataset folder `path`, on the environment `recorded_with`
-    makes (it must be the one they were recorded on: its layout and task file go into the metadata).
+    makes (it must be the one they were recorded on: its layout and task file go into the metadata);
+    with `camera`, also that camera's frames as video (tsrl.agents.lerobot_video, the episodes replayed).
     Written whole, then renamed into place; a tsrl dataset already there is replaced, any other
     existing path is refused. Returns the path."""
     pa, pq = import_pyarrow()
@@ -181,6 +185,11 @@ def save_lerobot(demos: DemoArrays, path: Path | str, recorded_with: TrainConfig
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     with replacing(path) as root:
+        if camera is not None:
+            feature, video_columns = write_camera_video(root, arrays, recorded_with, camera, info["fps"])
+            info["features"][video_key(camera)] = feature
+            info["video_path"] = VIDEO_PATH
+            episode_columns |= {name: _arrow(pa, values) for name, values in video_columns.items()}
         for name in (DATA, EPISODES, INFO):
             (root / name).parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.table(columns), root / DATA)
