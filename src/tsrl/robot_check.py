@@ -25,12 +25,10 @@ from .exceptions import InvalidConfig
 from .ik import DlsSolver, IKOptions
 from .kinematics import arm_qpos_indices, forward_kinematics, joint_limits, name_to_id
 from .robot_model import PreparedArm, RobotNotice, load_robot_model, robot_label
-from .robots import HOME_KEY, Robot, load_robot, reset_to_key
+from .robots import Robot, load_robot, reset_to_key
 from .settling import STEP, settle
 from .taskmaps import Position, resolve_frame
-
-#: Half-extent [m] of the default reach box around the TCP's home (Fetch's target range).
-DEFAULT_HALF_EXTENT = 0.15
+from .taskspace_box import DEFAULT_HALF_EXTENT, home_key, taskspace_box, tcp_at_home
 
 
 @dataclass(frozen=True)
@@ -105,13 +103,10 @@ def check_robot(
     lines += [f"notice: {w.message}" for w in caught if issubclass(w.category, RobotNotice)]
     lines += _joint_lines(model, robot)
     lines += _servo_lines(model, robot, arm)
-    key = _home_key(model, robot)
+    key = home_key(model, robot)
     home = robot.home_q(model)
-    data = mujoco.MjData(model)
-    _at_home(model, data, robot, home, key)
-    tcp = resolve_frame(model, robot.tcp)
-    tcp_home = (data.site_xpos[tcp.id] if tcp.kind == "site" else data.xpos[tcp.id]).copy()
-    lines.append(f"tcp: {robot.tcp} ({tcp.kind}), at home {_vec(tcp_home)} m")
+    tcp_home = tcp_at_home(model, robot)
+    lines.append(f"tcp: {robot.tcp} ({resolve_frame(model, robot.tcp).kind}), at home {_vec(tcp_home)} m")
     lines.append(f"base: {arm.base}")
     lines += [f"dropped: {d}" for d in arm.dropped]
     if robot.home is None:
@@ -139,6 +134,11 @@ def check_robot(
     lines.append(
         f"reach box: centre {_vec(center)}, half-extent {_vec(half)} m: {reached}/{len(box.points)} "
         f"points (corners, centre) reached by the IK from home (largest residual {box.residual.max():.2g} m)"
+    )
+    low, high = taskspace_box(robot)
+    source = "the robot's reach_low/reach_high" if robot.reach_low else "the default reach box around home"
+    lines.append(
+        f"taskspace box (action presets): {_vec(np.array(low))} .. {_vec(np.array(high))} m ({source})"
     )
     for point, residual, ok in zip(box.points, box.residual, box.converged, strict=True):
         if not ok:
@@ -209,12 +209,6 @@ def _check_zero_pose(
 
 
 _AXES = ("+x", "+y", "+z", "-x", "-y", "-z")
-
-
-def _home_key(model: mujoco.MjModel, robot: Robot) -> int | None:
-    if robot.home is None:
-        return None
-    return name_to_id(model, "key", robot.home if isinstance(robot.home, str) else HOME_KEY)
 
 
 def _at_home(

@@ -17,11 +17,14 @@ or from a few lines of TOML (`load_robot("arm3.toml")`; paths are relative to th
     tcp = "tool"                        # a site (or a body)
     home = "home"                       # optional keyframe
     actuators = ["a1", "a2", "a3"]      # optional position servos, one per joint
+    reach_low = [0.2, -0.3, 0.05]       # optional: the box the `taskspace` presets keep the TCP in
+    reach_high = [0.6, 0.3, 0.5]
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,12 +93,28 @@ class Robot:
     """Gripper servo, if the arm has a parallel-jaw gripper: a position actuator whose control is the
     target opening width [m] (in `panda_gripper` and `ur5e_gripper`, a fixed tendon over the two coupled finger joints,
     force-limited to the rated grasp force); `gripperWidth(<gripper>)` reads the width."""
+    reach_low: tuple[float, ...] = ()
+    """Lower corner [m, world] of the box the `taskspace` action presets keep the TCP's position target
+    in (with `reach_high`); empty: `tsrl robot check`'s default reach box, +-0.15 m around the TCP at
+    home (tsrl.taskspace_box)."""
+    reach_high: tuple[float, ...] = ()
+    """Upper corner [m, world] of that box."""
 
     def __post_init__(self) -> None:
         if self.actuators and len(self.actuators) != len(self.joints):
             raise InvalidConfig(
                 f"robot {self.name!r}: {len(self.actuators)} actuators for {len(self.joints)} joints; "
                 "give one position actuator per joint, in the joints' order, or none"
+            )
+        low, high = self.reach_low, self.reach_high
+        if (low or high) and not (
+            len(low) == len(high) == 3
+            and all(math.isfinite(v) for v in (*low, *high))
+            and all(a < b for a, b in zip(low, high))
+        ):
+            raise InvalidConfig(
+                f"robot {self.name!r}: reach_low {list(low)}, reach_high {list(high)}; accepted: both or "
+                "neither, 3 finite values each [m], low < high on every axis"
             )
 
     @classmethod
@@ -264,6 +283,12 @@ def _servos_of(model: mujoco.MjModel, joints: Sequence[str]) -> tuple[str, ...]:
     return tuple(found)
 
 
+#: The built-in arms' `taskspace` box [m, world]: above the built-in scenes' table, in front of the
+#: base at the origin. A clip box, not a reach guarantee: its far corners lie beyond the arms' reach
+#: (the IK stops short there), which `tsrl robot check`'s default box around home does not test.
+TABLE_REACH_LOW = (-0.9, -0.55, 0.02)
+TABLE_REACH_HIGH = (-0.15, 0.3, 0.7)
+
 #: Built-in robots by name.
 ROBOTS: dict[str, Robot] = {
     "ur5e": Robot(
@@ -274,6 +299,8 @@ ROBOTS: dict[str, Robot] = {
         home=ur5e.HOME_KEY,
         actuators=ur5e.JOINT_NAMES,  # each joint's servo carries the joint's name
         suction=ur5e.SUCTION_ACTUATOR,
+        reach_low=TABLE_REACH_LOW,
+        reach_high=TABLE_REACH_HIGH,
     ),
     "panda": Robot(
         name="panda",
@@ -283,6 +310,8 @@ ROBOTS: dict[str, Robot] = {
         home=panda.HOME_KEY,
         actuators=panda.JOINT_NAMES,
         suction=panda.SUCTION_ACTUATOR,
+        reach_low=TABLE_REACH_LOW,
+        reach_high=TABLE_REACH_HIGH,
     ),
     "panda_gripper": Robot(
         name="panda_gripper",
@@ -292,6 +321,8 @@ ROBOTS: dict[str, Robot] = {
         home=panda.HOME_KEY,
         actuators=panda.JOINT_NAMES,
         gripper=panda.GRIPPER_ACTUATOR,
+        reach_low=TABLE_REACH_LOW,
+        reach_high=TABLE_REACH_HIGH,
     ),
     "ur5e_gripper": Robot(
         name="ur5e_gripper",
@@ -301,6 +332,8 @@ ROBOTS: dict[str, Robot] = {
         home=ur5e.HOME_KEY,
         actuators=ur5e.JOINT_NAMES,
         gripper=panda.GRIPPER_ACTUATOR,  # the Franka Hand's servo (tsrl.assets.panda)
+        reach_low=TABLE_REACH_LOW,
+        reach_high=TABLE_REACH_HIGH,
     ),
 }
 

@@ -20,10 +20,6 @@ from ..exceptions import InvalidConfig
 from ..ik import DlsSolver
 from ..taskmaps import Stack, TaskMap, Velocity, parse_spec
 
-#: Bounds [m] of TCP position targets in the built-in scenes: above the table and within reach.
-WORKSPACE_LOW = (-0.9, -0.55, 0.02)
-WORKSPACE_HIGH = (-0.15, 0.3, 0.7)
-
 
 @dataclass(frozen=True)
 class ActionPart:
@@ -100,9 +96,11 @@ class ActionSpec:
         return bool(self.parts)
 
 
-_POSITION = ActionPart("position(tcp)", step=0.05, low=WORKSPACE_LOW, high=WORKSPACE_HIGH)
+#: The TCP position part of the presets; its bounds are the robot's (`preset`).
+_POSITION = ActionPart("position(tcp)", step=0.05)
 
-#: Built-in action modes (a task's `action` may name one; the env's `action` argument overrides it).
+#: Built-in action modes (a task's `action` may name one; the env's `action` argument overrides it),
+#: without bounds: `preset(name, low, high)` bounds their TCP position to a robot's box.
 ACTION_PRESETS: dict[str, ActionSpec] = {
     # The cup points down: TCP z axis = -world z (equivalently scalarProductZZ(world, tcp) = -1, but
     # the axis form has a full-rank Jacobian at the target, so the IK converges fast).
@@ -127,10 +125,26 @@ ACTION_MODES: dict[str, str] = {
 }
 
 
+def preset(name: str, low: tuple[float, ...], high: tuple[float, ...]) -> ActionSpec:
+    """The built-in mode `name` with its TCP position target kept in the box [low, high] [m, world]
+    (a robot's: tsrl.taskspace_box)."""
+    return _bounded(ACTION_PRESETS[name], low, high)
+
+
+def _bounded(spec: ActionSpec, low: tuple[float, ...], high: tuple[float, ...]) -> ActionSpec:
+    """`spec` with the bounds of its position(tcp) parts replaced by [low, high]."""
+    parts = tuple(
+        dataclasses.replace(p, low=low, high=high) if p.map == _POSITION.map else p for p in spec.parts
+    )
+    return dataclasses.replace(spec, parts=parts)
+
+
 def action_mode(spec: ActionSpec) -> str:
-    """The built-in mode (ACTION_PRESETS) `spec` is, with or without its suction dimension; else "task"."""
-    for name, preset in ACTION_PRESETS.items():
-        if preset.with_tool_of(spec) == spec:
+    """The built-in mode (ACTION_PRESETS) `spec` is, whatever its TCP box and with or without its tool
+    dimension; else "task"."""
+    unbounded = _bounded(spec, (), ())
+    for name, mode in ACTION_PRESETS.items():
+        if mode.with_tool_of(spec) == unbounded:
             return name
     return "task"
 

@@ -19,8 +19,9 @@ from typing import Any, Literal
 
 from ..configs import load_file
 from ..exceptions import InvalidConfig, check_positive
-from ..robots import ROBOTS
-from .actions import ACTION_PRESETS, WORKSPACE_HIGH, WORKSPACE_LOW, ActionPart, ActionSpec, HeldPart
+from ..robots import ROBOTS, load_robot
+from ..taskspace_box import taskspace_box
+from .actions import ACTION_PRESETS, ActionPart, ActionSpec, HeldPart, preset
 
 
 @dataclass(frozen=True)
@@ -311,8 +312,12 @@ class Task:
 
     @property
     def action_spec(self) -> ActionSpec:
-        """The action as an ActionSpec (a built-in mode resolved)."""
-        return ACTION_PRESETS[self.action] if isinstance(self.action, str) else self.action
+        """The action as an ActionSpec (a built-in mode resolved with the robot's TCP box)."""
+        return self._preset(self.action) if isinstance(self.action, str) else self.action
+
+    def _preset(self, name: str) -> ActionSpec:
+        """The built-in mode `name` bounded to the robot's box (tsrl.taskspace_box)."""
+        return preset(name, *taskspace_box(load_robot(self.robot_path)))
 
     def with_overrides(
         self, obs: str | None = None, action: str | None = None, success_radius: float | None = None
@@ -325,7 +330,7 @@ class Task:
         if action is not None:
             if action not in ACTION_PRESETS:
                 raise InvalidConfig(f"unknown action mode {action!r}; accepted: {', '.join(ACTION_PRESETS)}")
-            overrides["action"] = ACTION_PRESETS[action].with_tool_of(self.action_spec)
+            overrides["action"] = self._preset(action).with_tool_of(self.action_spec)
         if success_radius is not None:
             if isinstance(success_radius, bool) or not success_radius > 0:
                 raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
@@ -432,12 +437,9 @@ def _validate(task: Task) -> None:
         raise InvalidConfig(
             "goal.position.min_distance needs an object ([[objects]]) to keep the distance from"
         )
-    if task.action_spec.uses_ik and not isinstance(task.action, str):
-        for part in task.action_spec.parts:
-            if part.map.startswith("position(") and part.low and part.high:
-                _goal_within(task, part.low, part.high)
-    elif task.action_spec.uses_ik:
-        _goal_within(task, WORKSPACE_LOW, WORKSPACE_HIGH)
+    for part in task.action_spec.parts:  # a built-in mode's with the robot's box (tsrl.taskspace_box)
+        if part.map.startswith("position(") and part.low and part.high:
+            _goal_within(task, part.low, part.high)
     o = task.goal.orientation
     if o is not None:
         if not 0 <= o.cone <= 90 or not 0 <= o.max_yaw <= 180:
@@ -495,6 +497,12 @@ def _goal_within(task: Task, low: tuple[float, ...], high: tuple[float, ...]) ->
         raise InvalidConfig(
             f"goal.position box [{_fmt(lo)}] .. [{_fmt(hi)}] leaves the workspace the TCP target may reach, "
             f"[{_fmt(low)}] .. [{_fmt(high)}]"
+            + (
+                " (the action mode's box: the robot's reach_low/reach_high, else `tsrl robot check`'s "
+                "reach box around the TCP at home)"
+                if isinstance(task.action, str)
+                else ""
+            )
         )
 
 
