@@ -1,5 +1,6 @@
 """README.md stays a front page (issue 51): under 12,000 characters, and its task table lists exactly
-the registered ids, each once, with the observation and action sizes gym.make gives."""
+the registered ids, each once, with the observation and action sizes gym.make gives; every page under
+docs/ stays under 30,000 characters."""
 
 from __future__ import annotations
 
@@ -49,3 +50,12 @@ def test_the_task_tables_sizes_are_what_gym_make_builds() -> None:
             env_id
         )
         env.close()
+
+
+def test_every_docs_page_is_under_30000_characters() -> None:
+    long = {
+        p.relative_to(REPO).as_posix(): n
+        for p in (REPO / "docs").rglob("*.md")
+        if (n := len(p.read_text(encoding="utf-8"))) >= 30_000
+    }
+    assert long == {}
