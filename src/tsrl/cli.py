@@ -350,6 +350,7 @@ class Demos:
         from .agents.demo_lerobot import import_pyarrow, save_lerobot
         from .agents.demo_minari import import_minari, minari_path
         from .agents.demonstrators import record_demos
+        from .agents.lerobot_video import check_camera
 
         paths = {
             "npz": [self.out],
@@ -358,14 +359,17 @@ class Demos:
         }
         if self.format == "lerobot":
             import_pyarrow()  # missing: one line before the episodes run
+            # The layout and task file of the env the episodes are recorded on go into the dataset.
+            run = load_config(self.policy) if self.policy is not None else None
+            source = TrainConfig(env_id=self.env, obs=self.obs, action=self.action) if run is None else run
+            if self.camera is not None:
+                check_camera(source, self.camera)  # unknown: one line before the episodes run
         elif self.format != "npz":
             import_minari()
         demos = record_demos(
             self.env, self.episodes, self.obs, self.action, self.policy, self.seed, self.keep_failed
         )
-        if self.format == "lerobot":  # the layout and task file from the env they were recorded on
-            run = load_config(self.policy) if self.policy is not None else None
-            source = TrainConfig(env_id=self.env, obs=self.obs, action=self.action) if run is None else run
+        if self.format == "lerobot":
             print(summary_line(demos, save_lerobot(demos, self.out, source, self.camera)))
             return 0
         for path in paths[self.format]:

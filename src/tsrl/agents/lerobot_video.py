@@ -22,6 +22,7 @@ import numpy as np
 
 from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
+from ..rendering import named_camera
 from .config import TrainConfig
 
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
@@ -36,6 +37,18 @@ SIZE = (128, 128)
 def video_key(camera: str) -> str:
     """The dataset feature of a camera's frames: observation.images.<camera>."""
     return f"observation.images.{camera}"
+
+
+def check_camera(recorded_with: TrainConfig, camera: str) -> None:
+    """Raises UnknownName, listing the model's cameras, unless `camera` is WORKSPACE or a camera of the
+    model of the task `recorded_with` makes (checked before episodes are recorded)."""
+    if camera == WORKSPACE:
+        return
+    env = gym.make(recorded_with.gym_id, **recorded_with.env_kwargs)
+    try:
+        named_camera(env.unwrapped.model, camera)  # type: ignore[attr-defined]  # a TaskEnv's model
+    finally:
+        env.close()
 
 
 def write_camera_video(
