@@ -62,7 +62,7 @@ def breakdown(env: gym.Env, steps: int, seed: int) -> list[dict[str, float]]:
         action = env.action_space.sample()
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         t0 = time.perf_counter()
-        u._joint_targets(a)
+        u.interface.command(a, u.data.qpos[u.bound_robot.qpos], u.data)  # action map, IK, tool
         ik = time.perf_counter() - t0
         mujoco.mj_copyData(scratch, u.model, u.data)
         t0 = time.perf_counter()
