@@ -154,10 +154,16 @@ class Evaluate:
     record: Annotated[Path | None, arg(metavar="DIR")] = None
     """Also write --episodes rollouts of the policy (successful or not, at demonstration seeds of --seed)
     as a LeRobotDataset v3 folder, as `tsrl demos record --format lerobot` does (docs/datasets.md)."""
+    camera: Annotated[str | None, arg(metavar="NAME")] = None
+    """With --record: also this camera's frames as video, as `tsrl demos record --camera` writes them."""
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
             raise InvalidConfig(f"--episodes must be >= 1; got {self.episodes}")
+        if self.camera is not None and self.record is None:
+            raise InvalidConfig(
+                f"--camera {self.camera}: video of the rollouts of --record; give --record DIR"
+            )
         if self.record is not None and (self.env, self.task, self.perturb) != (None, None, None):
             raise InvalidConfig(
                 "--record writes rollouts on the run's own task; not with --env, --task or --perturb"
@@ -191,6 +197,10 @@ class Evaluate:
             for line in write_profile(self.run_dir, perturbation, self.episodes, self.seed, target, self.out):
                 print(line)
             return 0
+        if self.camera is not None:
+            from .agents.lerobot_video import check_camera
+
+            check_camera(load_config(self.run_dir), self.camera)  # unknown: one line before the evaluation
         from .agents.evaluation import evaluate_run
 
         out = evaluate_run(self.run_dir, self.episodes, self.seed, env_id=target)
@@ -210,7 +220,7 @@ class Evaluate:
             rollouts = record_demos(
                 run.env_id, self.episodes, policy=self.run_dir, seed=seed, keep_failed=True
             )
-            print(summary_line(rollouts, save_lerobot(rollouts, self.record, run)))
+            print(summary_line(rollouts, save_lerobot(rollouts, self.record, run, self.camera)))
         return 0
 
 

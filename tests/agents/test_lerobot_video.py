@@ -12,8 +12,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from cli_runner import run_tsrl
+from training_helpers import tiny
 
 import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents import train
 from tsrl.agents.config import TrainConfig
 from tsrl.agents.demo_files import ARRAYS, load_demos
 from tsrl.agents.lerobot_video import VIDEO_PATH, WORKSPACE, video_key, write_camera_video
@@ -146,3 +148,20 @@ def test_a_bad_camera_exits_2_in_one_line(tmp_path, args, expected):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], lines
     assert not out.exists() and list(Path(tmp_path).iterdir()) == []
+
+
+def test_evaluate_record_with_a_camera_writes_the_rollouts_video(tmp_path, capsys):
+    run_dir = train(tiny(total=100), tmp_path / "runs", progress_bar=False)
+    out = tmp_path / "rollouts"
+    assert (
+        main(["evaluate", str(run_dir), "--episodes", "1", "--record", str(out), "--camera", WORKSPACE]) == 0
+    )
+    assert "wrote " + str(out) in capsys.readouterr().out
+    info = json.loads((out / "meta" / "info.json").read_text())
+    video = out / info["video_path"].format(video_key=video_key(WORKSPACE), chunk_index=0, file_index=0)
+    with imageio.get_reader(video) as reader:
+        assert sum(1 for _ in reader) == info["total_frames"] == 50
+    assert main(["evaluate", str(run_dir), "--camera", WORKSPACE]) == 2
+    assert (
+        "--camera workspace: video of the rollouts of --record; give --record DIR" in capsys.readouterr().err
+    )
