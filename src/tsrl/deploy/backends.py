@@ -314,32 +314,55 @@ class UrRtdeBackend:
 class FrankaBackend:
     """A Franka arm over franky-control: joint position motions (untried on hardware; docs/deploy.md).
 
-    Each command is `robot.move(JointMotion(q), asynchronous=True)`, which franky re-plans at once
-    (Ruckig, within the arm's limits times `relative_dynamics_factor`); state from
-    `robot.current_joint_state` (position, velocity). No objects: a reach task only.
+    Each new command is `robot.move(JointMotion(q), asynchronous=True)`, which franky re-plans at once
+    (Ruckig, within the arm's limits times `relative_dynamics_factor`); a command equal to the last one
+    sent is not sent again (the motion already heads there). A command franky refuses (e.g. "Motion
+    planner failed") is not sent: it is counted in `failed_commands`, franky's error recovery runs, and
+    the next command is sent afresh, so the loop goes on. State from `robot.current_joint_state`
+    (position, velocity). No objects: a reach task only.
+
+    Args:
+        realtime: require a realtime kernel, as libfranka does by default (`RealtimeConfig.Enforce`);
+            False (`Ignore`) for a simulator of the arm (franky-sim) on an ordinary kernel.
     """
 
     name = "franka"
     joint_names: tuple[str, ...] = panda.JOINT_NAMES
 
-    def __init__(self, address: str, period: float = 0.01, relative_dynamics_factor: float = 0.1):
+    def __init__(
+        self, address: str, period: float = 0.01, relative_dynamics_factor: float = 0.1, realtime: bool = True
+    ):
         self.address, self.period = address, period
         self.relative_dynamics_factor = relative_dynamics_factor
+        self.realtime = realtime
+        #: Commands franky refused (each followed by its error recovery).
+        self.failed_commands = 0
         self._franky: Any = None
         self._robot: Any = None
+        self._sent: np.ndarray | None = None
         self._next = 0.0
         self._clock0 = 0.0
 
     def connect(self) -> None:
         self._franky = _import("franky", "franka", "franky-control")
+        config = self._franky.RealtimeConfig
         try:
-            self._robot = self._franky.Robot(self.address)
+            self._robot = self._franky.Robot(
+                self.address, realtime_config=config.Enforce if self.realtime else config.Ignore
+            )
             self._robot.recover_from_errors()
+        except self._franky.RealtimeException as err:
+            raise BackendError(
+                f"franka backend: libfranka refuses to run without a realtime kernel ({err}); on the arm's "
+                "computer use a realtime kernel; for a simulator (franky-sim) pass --no-franka-realtime; "
+                "the arm was not moved"
+            ) from None
         except Exception as err:  # noqa: BLE001  (libfranka's network errors are several classes)
             raise BackendError(
                 f"franka backend: no answer from {self.address} ({err}); the arm was not moved"
             ) from None
         self._robot.relative_dynamics_factor = self.relative_dynamics_factor
+        self._sent = None
         self._clock0 = time.perf_counter()
         self._next = self.period
 
@@ -353,7 +376,19 @@ class FrankaBackend:
         )
 
     def send(self, q: np.ndarray, tool: float | None = None) -> None:
-        self._robot.move(self._franky.JointMotion(list(map(float, q))), asynchronous=True)
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
+            raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
+        if self._sent is not None and np.array_equal(q, self._sent):
+            return  # a held target: the motion already heads there
+        try:
+            self._robot.move(self._franky.JointMotion(q.tolist()), asynchronous=True)
+        except (self._franky.Exception, RuntimeError):  # franky's planner errors are RuntimeErrors
+            self.failed_commands += 1
+            self._sent = None  # the next command is sent afresh
+            self._robot.recover_from_errors()
+            return
+        self._sent = q.copy()
 
     def wait(self) -> None:
         ahead = self._next - self.now()
@@ -373,12 +408,15 @@ class FrankaBackend:
 BACKENDS: tuple[str, ...] = ("mujoco", "ur", "franka")
 
 
-def make_backend(name: str, export_dir: Path, address: str | None, options: dict[str, Any]) -> RobotBackend:
-    """The backend called `name` (BACKENDS); ur and franka need an address."""
+def make_backend(
+    name: str, export_dir: Path, address: str | None, options: dict[str, Any], franka_realtime: bool = True
+) -> RobotBackend:
+    """The backend called `name` (BACKENDS); ur and franka need an address; `franka_realtime`:
+    FrankaBackend's `realtime`."""
     if name == "mujoco":
         return MujocoBackend(export_dir, **options)
     if name in ("ur", "franka"):
         if not address:
             raise InvalidConfig(f"--backend {name} needs --address (the robot's IP address)")
-        return UrRtdeBackend(address) if name == "ur" else FrankaBackend(address)
+        return UrRtdeBackend(address) if name == "ur" else FrankaBackend(address, realtime=franka_realtime)
     raise InvalidConfig(f"unknown backend {name!r}; accepted: {', '.join(BACKENDS)}")

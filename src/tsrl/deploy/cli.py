@@ -52,6 +52,9 @@ class Deploy:
     """mujoco: a simulated arm (the export's scene); ur: ur-rtde servoJ; franka: franky-control."""
     address: str | None = None
     """The robot's IP address (ur, franka)."""
+    franka_realtime: bool = True
+    """franka: require a realtime kernel, as libfranka does by default; --no-franka-realtime for a
+    simulator of the arm (franky-sim) on an ordinary kernel."""
     episodes: int = 3
     """Episodes to run."""
     seeds: tuple[int, ...] | None = None
@@ -106,7 +109,7 @@ class Deploy:
             return self._replay()
         import numpy as np
 
-        from .backends import ShadowBackend, check_backend, make_backend
+        from .backends import FrankaBackend, ShadowBackend, check_backend, make_backend
         from .controller import Controller, ControllerOptions
         from .loop import DeployLog, log_header, run_episodes
         from .timing import worst_of
@@ -122,13 +125,23 @@ class Deploy:
             "object_noise": self.object_noise,
             "drop_rate": self.drop_rate,
         }
+        if self.backend != "franka" and not self.franka_realtime:
+            raise InvalidConfig(
+                "--no-franka-realtime is the franka backend's; accepted with --backend franka"
+            )
         if self.backend != "mujoco" and any(v for v in sim.values()):
             raise InvalidConfig(
                 "--realtime, --latency, --joint-noise, --object-noise, --drop-rate are mujoco's"
             )
         backend = make_backend(
-            self.backend, self.export_dir, self.address, sim if self.backend == "mujoco" else {}
+            self.backend,
+            self.export_dir,
+            self.address,
+            sim if self.backend == "mujoco" else {},
+            franka_realtime=self.franka_realtime,
         )
+        if self.backend == "franka" and not self.franka_realtime:
+            print("franka: realtime kernel not required (--no-franka-realtime: for a simulator, not the arm)")
         options = ControllerOptions(
             speed_scale=self.speed_scale,
             action_filter=self.action_filter,
@@ -159,6 +172,10 @@ class Deploy:
             print(
                 f"episode {i} (seed {r.seed}): {'success' if r.success else 'failure'}{true}, final distance "
                 f"{r.distance:.4f} m, faults: {faults}{timing}"
+            )
+        if isinstance(backend, FrankaBackend) and backend.failed_commands:
+            print(
+                f"franka: {backend.failed_commands} commands refused by franky (each followed by its recovery)"
             )
         compute = np.concatenate([r.compute_s for r in results]) * 1e3
         interp = np.concatenate([r.interpolate_s for r in results]) * 1e6
