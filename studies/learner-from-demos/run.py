@@ -3,7 +3,7 @@ the given seeds, evaluates each final policy on 100 fresh episodes, and writes a
 data/runs.csv; `table` prints the study's table from that file.
 
     python studies/learner-from-demos/run.py train ARM TASK --seeds 0 1 2 3 4 [--out DIR]
-    python studies/learner-from-demos/run.py table
+    python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
 
 Arms (ARMS): bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
 seed 0), 8,000 gradient steps; fast100 / fast10: `--learner fast` with the same demonstrations.
@@ -180,6 +180,40 @@ def table() -> None:
         )
 
 
+#: The issue's targets: every seed at 95 % (sustained) within these env steps, per (task, demonstrations).
+TARGETS = {
+    ("PandaPickPlaceGripper-v0", 100): 5_000,
+    ("PandaPickPlaceGripper-v0", 10): 60_000,
+    ("PandaPush-v0", 100): 30_000,
+    ("PandaStack-v0", 100): 150_000,
+    ("PandaPegInsert-v0", 100): 150_000,
+    ("UR5ePickPlace-v0", 100): 12_500,
+}
+
+
+def verdicts() -> None:
+    """The pre-registered rules (README, pre-registration 2) for each task with a learner arm."""
+    rows = read_rows()
+    print(
+        "| task | demos | BC floor | learner seeds | lowest eval after 2,500 | floor held | "
+        "seeds at 95 % within target | target |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for (task, n), target in TARGETS.items():
+        bc = [float(r["final"]) for r in rows if r["task"] == task and r["arm"] == f"bc{n}"]
+        fast = [r for r in rows if r["task"] == task and r["arm"] == f"fast{n}"]
+        if not bc or not fast:
+            continue
+        floor = float(np.mean(bc))
+        lowest = min(float(r["min_after"]) for r in fast)
+        within = sum(r["to95"] not in ("", "nan") and float(r["to95"]) <= target for r in fast)
+        met = "met" if within == len(fast) == 5 else "missed" if len(fast) == 5 else "not decided"
+        print(
+            f"| {task} | {n} | {floor:.2f} | {len(fast)} | {lowest:.2f} | "
+            f"{'yes' if lowest >= floor - 0.05 else 'no'} | {within} of {len(fast)} within {target:,} | {met} |"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -194,6 +228,8 @@ def main() -> None:
         train_arm(args.arm, args.task, args.seeds, args.out)
     else:
         table()
+        print()
+        verdicts()
 
 
 if __name__ == "__main__":
