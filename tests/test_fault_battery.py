@@ -9,7 +9,9 @@ the process to itself at the point under test, and the test waits for the exit w
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -22,6 +24,8 @@ from training_helpers import tiny
 from tsrl.agents import evaluation
 from tsrl.agents.run_folder import read_progress
 from tsrl.agents.training import TrainingInterrupted, resume, train
+from tsrl.envs.tasks import builtin_task_path
+from tsrl.experiments.config import load_experiment
 from tsrl.experiments.runner import checkpoint_steps
 
 
@@ -124,3 +128,78 @@ def test_init_from_another_observation_names_both_layouts():
         "tsrl/UR5eReach-v0 (observation baseline, action taskspace) does not match the layout of "
         "tsrl/UR5eReach-v0 (observation fs1, action taskspace): observation row 1"
     )
+
+
+# -- found late: refused when the experiment loads -------------------------------------------------------
+def test_two_task_files_of_one_file_name_in_one_experiment_are_refused_when_it_loads(tmp_path):
+    reach = builtin_task_path("UR5eReach-v0").read_text()
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "reach.toml").write_text(reach)
+    definition = tmp_path / "two.toml"
+    definition.write_text('env = ["a/reach.toml", "b/reach.toml"]\nobs = ["fs1"]\ntotal_timesteps = 100\n')
+    out = tmp_path / "results"
+    line = _one_line(run_tsrl("experiment", str(definition), "--out-dir", str(out)))
+    assert line.startswith(f"tsrl: error: {definition}: env ") and "give one run folder name" in line
+    assert "task-reach__fs1" in line and "distinct file names" in line
+    assert not out.exists()
+
+
+def test_a_changed_definition_is_refused_and_experiment_json_kept(tmp_path):
+    """A run folder made by the old definition: the new one is refused before anything is written."""
+    definition = tmp_path / "grow.toml"
+    definition.write_text('obs = ["fs1"]\ntotal_timesteps = 100\neval_episodes = 2\n')
+    exp = load_experiment(definition, check_envs=False)
+    exp_dir = tmp_path / "results" / "grow"
+    (run,) = exp.runs(exp_dir.resolve())
+    (exp_dir / run.run_name).mkdir(parents=True)
+    (exp_dir / run.run_name / "config.json").write_text(json.dumps(run.to_dict()))
+    (exp_dir / "experiment.json").write_text(json.dumps(exp.to_dict()))
+    before = {p: p.read_bytes() for p in exp_dir.rglob("*") if p.is_file()}
+    definition.write_text('obs = ["fs1"]\ntotal_timesteps = 100\neval_episodes = 3\n')
+    line = _one_line(run_tsrl("experiment", str(definition), "--out-dir", str(tmp_path / "results")))
+    assert f"run folder {exp_dir / run.run_name} holds a run of another config" in line
+    assert "eval_episodes: 2 there, 3 here" in line and "experiment.json kept" in line
+    assert {p: p.read_bytes() for p in exp_dir.rglob("*") if p.is_file()} == before
+
+
+# -- damaged result files: one line from tsrl report ---------------------------------------------------
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory) -> Path:
+    """A tiny run at its budget (seconds), copied by each test that damages one of its files."""
+    return train(tiny(), tmp_path_factory.mktemp("finished"), progress_bar=False)
+
+
+def _results_with(finished_run: Path, tmp_path: Path) -> Path:
+    results = tmp_path / "results"
+    shutil.copytree(finished_run, results / finished_run.name)
+    return results
+
+
+def test_report_refuses_a_progress_row_cut_short(finished_run, tmp_path):
+    results = _results_with(finished_run, tmp_path)
+    progress = results / finished_run.name / "progress.csv"
+    text = progress.read_text()
+    progress.write_text(text[: text.rstrip("\n").rfind(",")] + "\n")  # the last row loses its last cell
+    line = _one_line(run_tsrl("report", str(results)))
+    rows = len(text.strip().splitlines())
+    assert f"{progress}: row {rows} has 10 cells, the header 11 columns (cut short" in line
+    assert "accepted: complete rows" in line
+
+
+@pytest.mark.parametrize(("text", "why"), [("", "not JSON"), ("[1, 2]", "a JSON list")])
+def test_report_refuses_an_empty_or_foreign_experiment_json(finished_run, tmp_path, text, why):
+    results = _results_with(finished_run, tmp_path)
+    (results / "experiment.json").write_text(text)
+    line = _one_line(run_tsrl("report", str(results)))
+    assert f"{results / 'experiment.json'}: {why}" in line and "accepted: the JSON object" in line
+
+
+def test_report_refuses_a_corrupt_evaluations_csv(finished_run, tmp_path):
+    from tsrl.experiments.evaluations import EVAL_COLUMNS
+
+    results = _results_with(finished_run, tmp_path)
+    row = {k: "" for k in EVAL_COLUMNS} | {"seed": "zero", "env_steps": "200", "episodes": "2"}
+    (results / "evaluations.csv").write_text(",".join(EVAL_COLUMNS) + "\n" + ",".join(row.values()) + "\n")
+    line = _one_line(run_tsrl("report", str(results)))
+    assert f"{results / 'evaluations.csv'}: row 2: seed = 'zero'; accepted: a whole number" in line

@@ -62,10 +62,10 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
     exp_dir = tmp_path / "results" / "tiny"
     fs1_s0, baseline_s0, fs1_s1, baseline_s1 = (exp_dir / c.run_name for c in exp.runs())
 
-    # A folder holding another config under one run's name: that run must fail, alone.
-    other = exp.runs()[3].to_dict() | {"eval_episodes": 3}
-    baseline_s1.mkdir(parents=True)
-    (baseline_s1 / "config.json").write_text(json.dumps(other))
+    # A run whose only checkpoint is damaged (an empty folder): that run must fail, alone. (A folder of
+    # another config refuses the whole experiment before it starts: tests/test_fault_battery.py.)
+    (baseline_s1 / "checkpoints" / "step_100").mkdir(parents=True)
+    (baseline_s1 / "config.json").write_text(json.dumps(exp.runs()[3].to_dict()))
 
     # 1. `tsrl experiment` killed (SIGKILL, whole process group) once a run has a mid-way checkpoint.
     proc = subprocess.Popen(
@@ -92,7 +92,7 @@ def test_local_pool_resumes_killed_runs_reports_a_failure_skips_finished_runs_an
         assert checkpoint_at(run_dir) == 300 and outcomes[run_dir.name].env_steps == 300
         assert not (run_dir / "error.txt").exists()
     failed = outcomes[baseline_s1.name]
-    assert failed.status == "failed" and "another config" in failed.error and "eval_episodes" in failed.error
+    assert failed.status == "failed" and "no usable checkpoint" in failed.error
     assert "Traceback" in (baseline_s1 / "error.txt").read_text()
     assert "failed" in log.getvalue() and "4/4 runs" in log.getvalue()
     assert json.loads((exp_dir / "experiment.json").read_text())["obs"] == ["fs1", "baseline"]

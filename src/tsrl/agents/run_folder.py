@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any, Self
 
 from ..configs import load_table
-from ..exceptions import TsrlError, is_number
+from ..exceptions import InvalidConfig, TsrlError, is_number
 from ..files import replacing, write_atomic
 from . import task_record
 from .config import TASK_FILE_SUFFIX, TrainConfig
@@ -189,6 +189,28 @@ def read_progress(run_dir: Path | str) -> list[dict[str, float]]:
         return []
     with open(path, newline="") as f:
         return [{k: _to_float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def check_progress(run_dir: Path | str) -> None:
+    """Raises InvalidConfig (one line naming the file and row) where progress.csv has a row cut short
+    (a kill during a write) or a clock that is not a whole number; read_progress would read it as NaN."""
+    path = Path(run_dir) / PROGRESS
+    if not path.is_file():
+        return
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        for line, row in enumerate(reader, start=2):
+            extra = row.pop(None, [])  # DictReader keeps cells past the header under None
+            cells = sum(v is not None for v in row.values()) + len(extra)
+            if cells != len(row):
+                raise InvalidConfig(
+                    f"{path}: row {line} has {cells} cells, the header {len(row)} columns (cut short, e.g. "
+                    "by a kill during a write); accepted: complete rows (tsrl train --resume drops rows "
+                    "after the last checkpoint, or remove the row)"
+                )
+            clock = (row.get("env_steps") or "").strip()
+            if not clock.isdigit():
+                raise InvalidConfig(f"{path}: row {line}: env_steps = {clock!r}; accepted: a whole number")
 
 
 def truncate_progress(run_dir: Path, last_step: int, column: str = "env_steps") -> int:

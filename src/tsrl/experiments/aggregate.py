@@ -30,7 +30,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..agents.run_folder import CONFIG_FILE, load_config, read_progress
+from ..agents.run_folder import CONFIG_FILE, check_progress, load_config, read_progress
 from ..configs import load_table
 from ..envs import OBS_PRESETS
 from ..exceptions import InvalidConfig, TsrlError
@@ -81,6 +81,7 @@ def collect(run_dirs: list[Path]) -> list[dict[str, Any]]:
                 "report one experiment's folder at a time"
             )
         seen[key, cfg.seed] = run_dir
+        check_progress(run_dir)
         for r in read_progress(run_dir):
             rows.append(
                 {
@@ -493,11 +494,23 @@ def _cell(value: Any) -> Any:
 
 
 def _experiment_info(results_dir: Path) -> dict[str, Any]:
+    """experiment.json as written by `tsrl experiment` ({} without one); InvalidConfig, one line, if it is
+    empty or not a JSON object."""
     path = results_dir / EXPERIMENT_FILE
-    try:
-        return json.loads(path.read_text()) if path.is_file() else {}
-    except json.JSONDecodeError:
+    if not path.is_file():
         return {}
+    try:
+        info = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        info, why = None, f"not JSON ({err})"
+    else:
+        why = f"a JSON {type(info).__name__}"
+    if not isinstance(info, dict):
+        raise InvalidConfig(
+            f"{path}: {why}; accepted: the JSON object `tsrl experiment` writes (run it again to rewrite "
+            "the file, or remove it)"
+        )
+    return info
 
 
 def _experiment_name(results_dir: Path) -> str:

@@ -377,9 +377,23 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
     if isinstance(agent, dict) and "algo" in agent:
         raise InvalidConfig(f"{path}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
     exp = load_table(ExperimentConfig, data, source=path, extra={"name": path.name.removesuffix(SUFFIX)})
+    check_run_names(exp, where=str(path))
     if check_envs:
         check_environments(exp, where=str(path))
     return exp
+
+
+def check_run_names(exp: ExperimentConfig, where: str = "experiment") -> None:
+    """Raises InvalidConfig (one line) where two runs of `exp` would share a run folder (task files of
+    one file name in two folders): the second would fail only after the first had trained."""
+    seen: dict[str, TrainConfig] = {}
+    for cfg in exp.runs():
+        first = seen.setdefault(cfg.run_name, cfg)
+        if first is not cfg:
+            raise InvalidConfig(
+                f"{where}: env {first.env_id!r} and env {cfg.env_id!r} give one run folder name "
+                f"{cfg.run_name!r}; accepted: task files of distinct file names (rename one)"
+            )
 
 
 def check_environments(exp: ExperimentConfig, where: str = "experiment") -> None:

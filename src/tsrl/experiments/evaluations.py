@@ -22,6 +22,7 @@ import numpy as np
 from ..agents.config import TrainConfig
 from ..agents.run_folder import CONFIG_FILE, load_config, with_task_copy
 from ..agents.transfer import EvalTask, Perturbation, check_layout, eval_task, sweep
+from ..exceptions import InvalidConfig
 from ..files import write_atomic
 from . import statistics as st
 from .config import WORKER_ENV, ExperimentConfig, Key, evaluation_tasks
@@ -235,17 +236,39 @@ def write_profile(
 
 # -- files ------------------------------------------------------------------------------------------
 def read_evaluations(path: Path) -> list[dict[str, Any]]:
-    """evaluations.csv's rows (numbers as floats, NaN for empty cells; seed and counts as ints)."""
+    """evaluations.csv's rows (numbers as floats, NaN for empty cells; seed and counts as ints).
+
+    Raises InvalidConfig, one line naming the file, row and column, where a cell is missing or not a
+    number of its column's kind (a damaged or hand-edited file)."""
     if not path.is_file():
         return []
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
-    for r in rows:
-        for k in ("seed", "env_steps", "episodes"):
-            r[k] = int(r[k])
-        for k in ("perturb_value", "success_rate", "final_distance_m", "penalised_rate", "wall_time_s"):
-            r[k] = float(r[k]) if r[k] != "" else math.nan
+    for line, r in enumerate(rows, start=2):
+        for k, kind in _EVAL_NUMBERS.items():
+            value = r.get(k)
+            try:
+                r[k] = math.nan if value == "" and kind is float else kind(value)
+            except (TypeError, ValueError):
+                accepted = "a whole number" if kind is int else "a number or an empty cell"
+                raise InvalidConfig(
+                    f"{path}: row {line}: {k} = {value!r}; accepted: {accepted} (the file as `tsrl experiment` "
+                    "writes it: remove it to evaluate again)"
+                ) from None
     return rows
+
+
+#: evaluations.csv's numeric columns and their kinds (the others are labels).
+_EVAL_NUMBERS: dict[str, type] = {
+    "seed": int,
+    "env_steps": int,
+    "episodes": int,
+    "perturb_value": float,
+    "success_rate": float,
+    "final_distance_m": float,
+    "penalised_rate": float,
+    "wall_time_s": float,
+}
 
 
 def write_evaluations(path: Path, rows: list[dict[str, Any]]) -> Path:

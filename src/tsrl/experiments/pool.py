@@ -42,7 +42,7 @@ from .config import (
     config_labels,
     local_workers,
 )
-from .runner import ERROR_FILE, RunOutcome, checkpoint_steps, run_one, run_state
+from .runner import ERROR_FILE, RunOutcome, checkpoint_steps, config_difference, run_one, run_state
 
 
 def run_experiment(
@@ -59,10 +59,11 @@ def run_experiment(
     if workers is not None and workers < 1:
         raise InvalidConfig(f"--workers must be >= 1; got {workers}")
     exp_dir = Path(out_dir) / exp.name
+    runs = exp.runs(exp_dir.resolve())
+    _check_run_folders(runs, exp_dir)  # before experiment.json is replaced
     exp_dir.mkdir(parents=True, exist_ok=True)
     write_atomic(exp_dir / EXPERIMENT_FILE, json.dumps(exp.to_dict(), indent=2) + "\n")
 
-    runs = exp.runs(exp_dir.resolve())
     display = Progress(runs, exp_dir, stream if stream is not None else sys.stderr)
     outcomes: dict[str, RunOutcome] = {}
     todo = []
@@ -97,6 +98,23 @@ def run_experiment(
     finally:
         display.close()
     return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
+
+
+def _check_run_folders(runs: list[TrainConfig], exp_dir: Path) -> None:
+    """Raises InvalidConfig (one line) where a run's folder holds a run of another config: a changed
+    definition is refused before anything is written, experiment.json included, instead of each of its
+    runs failing in turn. A damaged folder is left to its worker to report (error.txt)."""
+    for cfg in runs:
+        try:
+            diff = config_difference(cfg, exp_dir / cfg.run_name)
+        except Exception:  # noqa: BLE001  (reported by the run's worker)
+            diff = ""
+        if diff:
+            raise InvalidConfig(
+                f"experiment {exp_dir.name}: run folder {exp_dir / cfg.run_name} holds a run of another "
+                f"config ({diff}); {EXPERIMENT_FILE} kept; accepted: the definition its runs were made with, "
+                "or another --out-dir"
+            )
 
 
 def _startable(

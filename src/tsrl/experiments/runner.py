@@ -70,6 +70,19 @@ def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "pa
     """
     if not (run_dir / CONFIG_FILE).is_file():
         return "new"
+    diff = config_difference(cfg, run_dir)
+    if diff:
+        raise InvalidConfig(
+            f"run folder {run_dir} holds a run of another config ({diff}); move it away or use another --out-dir"
+        )
+    return "finished" if checkpoint_steps(run_dir) >= cfg.total_timesteps else "partial"
+
+
+def config_difference(cfg: TrainConfig, run_dir: Path) -> str:
+    """How the run in `run_dir` differs from `cfg` beyond its budget ("key: theirs there, ours here",
+    comma-separated); "" where it does not or the folder holds no run."""
+    if not (run_dir / CONFIG_FILE).is_file():
+        return ""
     existing = load_config(run_dir)
     theirs, ours = existing.to_dict(), cfg.to_dict()
     theirs.pop("total_timesteps")
@@ -81,12 +94,7 @@ def run_state(cfg: TrainConfig, run_dir: Path) -> Literal["new", "finished", "pa
         and records_files_of(run_dir, cfg.env_id)
     ):
         theirs["env_id"] = ours["env_id"]
-    if theirs != ours:
-        diff = ", ".join(f"{k}: {theirs[k]!r} there, {ours[k]!r} here" for k in ours if theirs[k] != ours[k])
-        raise InvalidConfig(
-            f"run folder {run_dir} holds a run of another config ({diff}); move it away or use another --out-dir"
-        )
-    return "finished" if checkpoint_steps(run_dir) >= cfg.total_timesteps else "partial"
+    return ", ".join(f"{k}: {theirs[k]!r} there, {ours[k]!r} here" for k in ours if theirs[k] != ours[k])
 
 
 def run_one(cfg: TrainConfig, exp_dir: Path | str) -> RunOutcome:
