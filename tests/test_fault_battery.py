@@ -203,3 +203,26 @@ def test_report_refuses_a_corrupt_evaluations_csv(finished_run, tmp_path):
     (results / "evaluations.csv").write_text(",".join(EVAL_COLUMNS) + "\n" + ",".join(row.values()) + "\n")
     line = _one_line(run_tsrl("report", str(results)))
     assert f"{results / 'evaluations.csv'}: row 2: seed = 'zero'; accepted: a whole number" in line
+
+
+# -- overflow and NaN in a robot's model -----------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("option", "words"),
+    [
+        ('timestep="nan"', '<option timestep="nan">; accepted: finite numbers'),
+        ('timestep="-0.002"', '<option timestep="-0.002">; accepted: > 0 s'),
+        ('timestep="0.002" gravity="0 0 inf"', '<option gravity="0 0 inf">; accepted: finite numbers'),
+    ],
+)
+def test_a_robot_model_with_a_nan_or_bad_option_is_one_line(tmp_path, option, words):
+    from test_robot_check import ARM_XML, ROBOT_TOML
+
+    (tmp_path / "arm.xml").write_text(ARM_XML.replace('timestep="0.002"', option))
+    robot = tmp_path / "arm.toml"
+    robot.write_text(ROBOT_TOML)
+    result = run_tsrl("robot", "check", str(robot), "--no-images")
+    assert result.returncode == 2 and result.stdout == "" and "Traceback" not in result.stderr
+    last = result.stderr.strip().splitlines()[
+        -1
+    ]  # MuJoCo's own "XML contains a 'NaN'" warning may precede it
+    assert last == f"tsrl: error: {robot}: the model's {words}"

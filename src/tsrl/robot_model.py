@@ -114,9 +114,32 @@ def model_spec(name: str, base: Path | None = None, key: str = "model") -> mujoc
 def compile_spec(spec: mujoco.MjSpec, where: str) -> mujoco.MjModel:
     """spec.compile(), a MuJoCo error as one ModelLoadError line naming `where`."""
     try:
-        return spec.compile()
+        model = spec.compile()
     except ValueError as err:
         raise ModelLoadError(f"{where}: MuJoCo could not compile the model: {_one_line(err)}") from None
+    _check_options(model, where)
+    return model
+
+
+#: The real-valued <option> attributes of a model (MuJoCo compiles NaN and inf in them without a word).
+_REAL_OPTIONS = (
+    "timestep", "impratio", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd_tolerance", "gravity",
+    "wind", "magnetic", "density", "viscosity", "o_margin", "o_solref", "o_solimp", "o_friction",
+)  # fmt: skip
+
+
+def _check_options(model: mujoco.MjModel, where: str) -> None:
+    """Raises ModelLoadError (one line) where an <option> number is NaN or infinite, or timestep <= 0:
+    the simulation would run on garbage or fail deep inside the first check that uses it."""
+    for name in _REAL_OPTIONS:
+        value = np.atleast_1d(getattr(model.opt, name))
+        if not np.all(np.isfinite(value)):
+            shown = " ".join(f"{v:g}" for v in value)
+            raise ModelLoadError(f'{where}: the model\'s <option {name}="{shown}">; accepted: finite numbers')
+    if model.opt.timestep <= 0:
+        raise ModelLoadError(
+            f'{where}: the model\'s <option timestep="{model.opt.timestep:g}">; accepted: > 0 s'
+        )
 
 
 def load_robot_model(robot: Robot, where: str) -> tuple[mujoco.MjModel, PreparedArm]:
