@@ -57,6 +57,7 @@ def test_sigterm_during_an_evaluation_stops_it_and_the_checkpoint_resumes(tmp_pa
     run_dir = tmp_path / cfg.run_name
     assert stop.value.signum == signal.SIGTERM and sent
     assert read_progress(run_dir) == [] and (run_dir / "checkpoints").is_dir()  # the evaluation dropped
+    assert list(tmp_path.iterdir()) == [run_dir]  # nothing written outside the run's own folder
     monkeypatch.undo()
     resume(run_dir, progress_bar=False)
     rows = read_progress(run_dir)
