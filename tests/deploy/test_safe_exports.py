@@ -114,6 +114,9 @@ def test_an_altered_contract_and_unusable_limits_are_refused_in_one_line(run_and
             read_contract(folder)
         assert main(["deploy", str(folder), "--log", str(tmp_path / "x.jsonl")]) == 2
         assert words in one_error_line(capsys), name
+    older = _edited(export, tmp_path, "v1", lambda c: c.__setitem__("contract_version", 1), rehash=False)
+    assert main(["deploy", str(older), "--log", str(tmp_path / "x.jsonl")]) == 2
+    assert "contract_version 1; this tsrl reads 2 (export the run again)" in one_error_line(capsys)
     assert not (tmp_path / "x.jsonl").exists()
 
 

@@ -3,7 +3,7 @@ sha256 of every file, and reading a contract back with its files verified.
 
 An export folder (`tsrl export RUN --out DIR`, tsrl.deploy.export)::
 
-    DIR/contract.json   what the policy expects and what the controller enforces (CONTRACT_VERSION 1)
+    DIR/contract.json   what the policy expects and what the controller enforces (CONTRACT_VERSION 2)
     DIR/policy.onnx     the deterministic actor, observation normaliser folded in
     DIR/task.toml       the task file the run trained on (a copy)
     DIR/robot.toml      the robot's names (joints, TCP, servos, suction)
@@ -51,7 +51,8 @@ TASK = "task.toml"
 ROBOT = "robot.toml"
 MODEL_DIR = "model"
 #: The layout of contract.json; a reader refuses other layouts as it refuses other major versions.
-CONTRACT_VERSION = 1
+#: 2: the contract's own sha256, the action's tool.
+CONTRACT_VERSION = 2
 #: What `format` says in every contract.json.
 FORMAT = "tsrl-deploy-contract"
 
@@ -260,7 +261,8 @@ def read_contract(export_dir: Path | str) -> dict[str, Any]:
         )
     if contract.get("contract_version") != CONTRACT_VERSION:
         raise ContractError(
-            f"{path}: contract_version {contract.get('contract_version')!r}; this tsrl reads {CONTRACT_VERSION}"
+            f"{path}: contract_version {contract.get('contract_version')!r}; this tsrl reads {CONTRACT_VERSION} "
+            "(export the run again)"
         )
     digest = contract_digest(contract)
     if contract.get("sha256") != digest:

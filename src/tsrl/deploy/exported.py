@@ -77,6 +77,7 @@ def check_env_matches(env: TaskEnv | TaskInterface, contract: dict[str, Any]) ->
         ("observation.dim", env.obs_dim, contract["observation"]["dim"]),
         ("goal.dim", env.goal.dim, contract["goal"]["dim"]),
         ("action.dim", env.action_map.dim, contract["action"]["dim"]),
+        ("action.tool.kind", _tool_kind(env), (contract["action"]["tool"] or {}).get("kind")),
     ]
     for key, actual, wanted in expected:
         if actual != wanted and not (isinstance(actual, float) and math.isclose(actual, wanted)):
@@ -126,3 +127,9 @@ def _struct_bytes(struct: object) -> bytes:
             if not k.startswith("_") and not callable(v := getattr(struct, k))
         ]
     ).encode()
+
+
+def _tool_kind(env: TaskEnv | TaskInterface) -> str | None:
+    """The action's tool dimension: "suction", "gripper" or None."""
+    spec = env.action_map.spec
+    return "suction" if spec.suction else "gripper" if spec.gripper else None
