@@ -26,6 +26,7 @@ from tsrl.agents.run_folder import read_progress
 from tsrl.agents.training import TrainingInterrupted, resume, train
 from tsrl.envs.tasks import builtin_task_path
 from tsrl.experiments.config import load_experiment
+from tsrl.experiments.evaluations import read_evaluations
 from tsrl.experiments.runner import checkpoint_steps
 
 
@@ -227,3 +228,40 @@ def test_a_robot_model_with_a_nan_or_bad_option_is_one_line(tmp_path, option, wo
         -1
     ]  # MuJoCo's own "XML contains a 'NaN'" warning may precede it
     assert last == f"tsrl: error: {robot}: the model's {words}"
+
+
+def test_sigterm_during_an_experiments_evaluation_arms_ends_their_workers(tmp_path):
+    """SIGTERM while [[evaluate]] arms run on worker processes: the running evaluations end at once (the
+    rows written so far stay; a later call evaluates the rest) instead of being waited for (here for
+    minutes: the slow arm's episodes are 10,000 steps long)."""
+    reach = builtin_task_path("UR5eReach-v0").read_text()
+    (tmp_path / "long.toml").write_text(reach.replace("episode_steps = 50", "episode_steps = 10000"))
+    definition = tmp_path / "arms.toml"
+    definition.write_text(
+        'obs = ["fs1"]\nseeds = [0, 1]\ntotal_timesteps = 200\neval_freq = 100\neval_episodes = 2\n'
+        "checkpoint_freq = 100\n[agent]\nlearning_starts = 100\ngradient_steps = 10\nbatch_size = 64\n\n"
+        '[[evaluate]]\nname = "quick"\narm = "fs1"\nenv = "tsrl/UR5eReach-v0"\nepisodes = 2\n\n'
+        '[[evaluate]]\nname = "slow"\narm = "fs1"\nenv = "long.toml"\nepisodes = 50\n'
+    )
+    exp_dir = tmp_path / "results" / "arms"
+    for cfg in load_experiment(definition, check_envs=False).runs(exp_dir.resolve()):
+        train(cfg, exp_dir, progress_bar=False)  # finished: the experiment goes straight to its arms
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
+         "--workers", "2", "--no-report"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=REPO, start_new_session=True,
+    )  # fmt: skip
+    try:
+        assert proc.stderr is not None
+        while not proc.stderr.readline().startswith("evaluated "):  # a quick arm done: a worker is free
+            assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        stderr = proc.communicate(timeout=180)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 128 + signal.SIGTERM, stderr
+    assert stderr.splitlines()[-1] == "tsrl experiment: interrupted; run it again to resume"
+    labels = {row["label"] for row in read_evaluations(exp_dir / "evaluations.csv")}
+    assert "quick" in labels and "slow" not in labels  # the rows kept so far stay

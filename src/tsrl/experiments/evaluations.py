@@ -143,8 +143,11 @@ def run_evaluations(exp: ExperimentConfig, exp_dir: Path, stream: TextIO, worker
             try:
                 for future in as_completed(futures):
                     keep(*future.result())
-            except BaseException:
-                pool.shutdown(cancel_futures=True)  # the running ones finish; none starts
+            except BaseException:  # a signal (ExperimentStopped) or an error: stop now, none starts
+                running = list((pool._processes or {}).values())  # public only from Python 3.14 on
+                pool.shutdown(wait=False, cancel_futures=True)
+                for process in running:
+                    process.terminate()  # the running ones end (the rows kept so far stay in the file)
                 raise
     return path if path.is_file() else None
 
