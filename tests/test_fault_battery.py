@@ -238,14 +238,14 @@ def test_sigterm_during_an_experiments_evaluation_arms_ends_their_workers(tmp_pa
     (tmp_path / "long.toml").write_text(reach.replace("episode_steps = 50", "episode_steps = 10000"))
     definition = tmp_path / "arms.toml"
     definition.write_text(
-        'obs = ["fs1"]\nseeds = [0, 1]\ntotal_timesteps = 200\neval_freq = 100\neval_episodes = 2\n'
+        'obs = ["fs1"]\nseeds = [0]\ntotal_timesteps = 200\neval_freq = 100\neval_episodes = 2\n'
         "checkpoint_freq = 100\n[agent]\nlearning_starts = 100\ngradient_steps = 10\nbatch_size = 64\n\n"
         '[[evaluate]]\nname = "quick"\narm = "fs1"\nenv = "tsrl/UR5eReach-v0"\nepisodes = 2\n\n'
         '[[evaluate]]\nname = "slow"\narm = "fs1"\nenv = "long.toml"\nepisodes = 50\n'
     )
     exp_dir = tmp_path / "results" / "arms"
-    for cfg in load_experiment(definition, check_envs=False).runs(exp_dir.resolve()):
-        train(cfg, exp_dir, progress_bar=False)  # finished: the experiment goes straight to its arms
+    (run,) = load_experiment(definition, check_envs=False).runs(exp_dir.resolve())
+    train(run, exp_dir, progress_bar=False)  # finished: the experiment goes straight to its two arms
     proc = subprocess.Popen(
         [sys.executable, "-m", "tsrl.cli", "experiment", str(definition), "--out-dir", str(tmp_path / "results"),
          "--workers", "2", "--no-report"],
@@ -253,7 +253,7 @@ def test_sigterm_during_an_experiments_evaluation_arms_ends_their_workers(tmp_pa
     )  # fmt: skip
     try:
         assert proc.stderr is not None
-        while not proc.stderr.readline().startswith("evaluated "):  # a quick arm done: a worker is free
+        while not proc.stderr.readline().startswith("evaluated "):  # the quick arm done, the slow one running
             assert proc.poll() is None
         proc.send_signal(signal.SIGTERM)
         stderr = proc.communicate(timeout=180)[1]
