@@ -3,7 +3,8 @@ franky-sim, a simulator of the Franka arm's network protocol; run inside a priva
 (`unshare -n`, tests/deploy/test_franky_sim.py), where it brings the loopback up, starts the simulator
 on 127.0.0.2 (port 1337), waits for it, runs the test (then connects once more with libfranka's
 default realtime check, which an ordinary kernel fails) and stops the simulator by its process id.
-Exit 0 when the test passes; the simulator's output follows on failure."""
+With an export folder and a log path after the simulator's log file, `tsrl deploy` runs one episode
+of the export on it too. Exit 0 when the test passes; the simulator's output follows on failure."""
 
 from __future__ import annotations
 
@@ -55,6 +56,14 @@ def main() -> int:
             backend = FrankaBackend(HOST, realtime=False)
             conformance(backend)
             print(f"conformance passed; franky refused {backend.failed_commands} commands")
+            if len(sys.argv) > 3:  # a short deploy of an exported policy
+                from tsrl.cli import main as tsrl
+
+                deploy = [sys.argv[2], "--backend", "franka", "--address", HOST, "--no-franka-realtime"]
+                code = tsrl(
+                    ["deploy", *deploy, "--episodes", "1", "--speed-scale", "0.25", "--log", sys.argv[3]]
+                )
+                print(f"deploy exit {code}")
             if not _realtime_kernel():  # libfranka's default refuses it (last: it leaves the server busy)
                 try:
                     FrankaBackend(HOST).connect()

@@ -400,8 +400,12 @@ class FrankaBackend:
         return None
 
     def close(self) -> None:
+        """Stops the motion and drops the connection (libfranka closes it with the robot object)."""
         if self._robot is not None:
-            self._robot.move(self._franky.JointStopMotion())
+            try:
+                self._robot.move(self._franky.JointStopMotion())
+            finally:
+                self._robot = None
 
 
 #: Backend names of `tsrl deploy --backend`.
