@@ -30,7 +30,7 @@ type:  ## mypy over src/tsrl ([tool.mypy] in pyproject.toml)
 docs: install  ## the docs site (mkdocs.yml) into site/, strict: a broken link, anchor or API reference fails
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
-reproduce-check: install  ## re-derives from the committed data (docs/results/): every study's comparisons, the across-study table (docs/results/comparisons-all.md), every benchmark table
+reproduce-check: install  ## re-derives from the committed data (studies/QUESTION/SCREEN/, docs/results/benchmarks/): every study's comparisons, the across-study table (docs/results/comparisons-all.md), every benchmark table
 	$(BIN)/python scripts/readme_comparisons.py --check
 	$(BIN)/python scripts/benchmark_tables.py
 	$(BIN)/python -m pytest -q -p no:cacheprovider tests/experiments/test_across.py

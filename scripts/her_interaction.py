@@ -14,7 +14,7 @@ SAME_RUNS hold equal evaluations at every common env step, and each RUN_DIR give
 of a reused study's run on today's code, e.g. `tsrl experiment` on a one-seed copy of its file) equals
 the committed evaluations of that study (`--check-reuse paper-observations-v2-hard=results/x/run`).
 
-    python scripts/her_interaction.py [--root docs/results] [--check-reuse [STUDY=RUN_DIR ...]]
+    python scripts/her_interaction.py [--root studies] [--check-reuse [STUDY=RUN_DIR ...]]
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from study_folders import STUDIES, screen_folder
 
 from tsrl.experiments import statistics as st
 from tsrl.experiments.aggregate import RESULTS_CSV, collect, read_results, sort_key
@@ -57,8 +58,9 @@ RELEVANT = 0.05  # the registered relevant size of an interaction and of a featu
 
 
 def committed(root: Path, study: str) -> list[dict[str, Any]]:
-    """The tidy result rows of a committed study folder (exit with one line if it has none)."""
-    path = root / study / RESULTS_CSV
+    """The tidy result rows of a committed study folder, root/<question>/<study>/ (exit with one line if it
+    has none)."""
+    path = screen_folder(study, root) / RESULTS_CSV
     if not path.is_file():
         sys.exit(f"{path}: missing (the study has not run, or `tsrl report` was not run on it)")
     return read_results(path)
@@ -176,7 +178,7 @@ def report(root: Path, task: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "results")
+    parser.add_argument("--root", type=Path, default=STUDIES)
     parser.add_argument("--task", choices=sorted(CELLS), action="append", help="default: both")
     parser.add_argument("--check-reuse", nargs="*", metavar="STUDY=RUN_DIR", default=None)
     args = parser.parse_args(argv)

@@ -1,5 +1,5 @@
-"""Every pre-registered comparison of every committed study (docs/results/*/ with experiment.json and
-results.csv), recomputed from the committed data, Holm-corrected over all of them beside each study's
+"""Every pre-registered comparison of every committed study (studies/<question>/<screen>/ with
+experiment.json and results.csv), recomputed from the committed data, Holm-corrected over all of them beside each study's
 own correction (tsrl.experiments.across): prints the table and writes it to docs/results/comparisons-all.csv
 and .md (the docs site's page of it); --check writes nothing and exits 1 when either committed file is not
 what the data give (make reproduce-check).
@@ -14,7 +14,15 @@ import sys
 import tempfile
 from pathlib import Path
 
-from tsrl.experiments.across import CSV_COLUMNS, across, markdown_table
+from study_folders import screen_folders
+
+from tsrl.experiments.across import (
+    CSV_COLUMNS,
+    correct_across,
+    markdown_table,
+    study_comparisons,
+    study_folders,
+)
 from tsrl.experiments.aggregate import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,6 +47,12 @@ def page(rows: list[dict], table: list[str]) -> str:
     )
 
 
+def studies() -> list[Path]:
+    """Every committed screen whose experiment.json registers comparisons, sorted by name."""
+    screens = {p.parent for p in screen_folders()}
+    return sorted((f for q in screens for f in study_folders(q)), key=lambda p: p.name)
+
+
 def write_files(rows: list[dict], table: list[str], md: Path = PAGE, csv: Path = CSV) -> None:
     """The table's page and CSV."""
     write_csv(csv, [{k: r[k] for k in CSV_COLUMNS} for r in rows], CSV_COLUMNS)
@@ -51,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         "--check", action="store_true", help="compare with the committed files, write nothing"
     )
     args = parser.parse_args(argv)
-    rows = across(RESULTS)
+    rows = correct_across([r for folder in studies() for r in study_comparisons(folder)])
     table = markdown_table(rows)
     if args.check:
         with tempfile.TemporaryDirectory() as tmp:

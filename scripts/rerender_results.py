@@ -1,4 +1,4 @@
-"""Re-renders every committed study under docs/results/ from its committed data, without training:
+"""Re-renders every committed study (studies/<question>/<study>/) from its committed data, without training:
 a folder with experiment.json through `tsrl report` (tables, comparisons, figures: it reads
 results.csv when the run folders are absent); an early folder without one (superseded studies,
 written by an older report) gets its figures only, learning_curves.png replacing the older
@@ -12,12 +12,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from study_folders import ROOT, screen_folder, screen_folders
+
 from tsrl.experiments.aggregate import CURVES_PNG, RESULTS_CSV, read_results, sort_key, write_report
 from tsrl.experiments.config import EXPERIMENT_FILE
 from tsrl.experiments.curves import curves
 from tsrl.experiments.plots import plot_curves
 
-RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
 OLD_FIGURES = ("learning_curves_steps.png", "learning_curves_episodes.png")
 
 
@@ -45,12 +46,10 @@ def rerender(folder: Path) -> list[Path]:
 
 
 def main(argv: list[str]) -> int:
-    folders = [RESULTS / name for name in argv] or sorted(
-        p for p in RESULTS.iterdir() if (p / RESULTS_CSV).is_file()
-    )
+    folders = [screen_folder(name) for name in argv] or screen_folders()
     for folder in folders:
         for path in rerender(folder):
-            print(f"wrote {path.relative_to(RESULTS.parents[1])}")
+            print(f"wrote {path.relative_to(ROOT)}")
     return 0
 
 

@@ -1,7 +1,9 @@
 """MkDocs hook: links from a docs page to a file of the repository outside docs/ (a study's README, a
 source file, an example), or to a folder without a README, must point at something that exists, or
 the strict build fails; with `repo_url` set in mkdocs.yml they become links to it, otherwise the path
-is shown as code (the site holds only docs/ pages and files). A folder with a README links to it."""
+is shown as code (the site holds only docs/ pages and files). A folder with a README links to it. An
+image of the repository outside docs/ (a study's figure) is copied into the site under _repo/ and shown;
+a missing one fails the build too."""
 
 from __future__ import annotations
 
@@ -11,7 +13,11 @@ import re
 from pathlib import Path
 from typing import Any
 
+from mkdocs.structure.files import File
+
 log = logging.getLogger("mkdocs.plugins.tsrl_repo_links")
+IMAGE = re.compile(r"!\[(?P<alt>[^\]]*)\]\((?P<target>[^)\s]+)\)")
+SITE_COPY = "_repo"  # where images from outside docs/ go in the site
 LINK = re.compile(r"(?<!!)\[(?P<text>[^\]]*)\]\((?P<target>[^)\s]+)\)")
 FENCE = re.compile(r"^\s*(```|~~~)")
 
@@ -45,6 +51,29 @@ def _rewrite(line: str, page_dir: str, repo: Path, docs: str, repo_url: str | No
     return LINK.sub(one, line)
 
 
+def _images(line: str, page_dir: str, repo: Path, docs: str, page: str, config: Any, files: Any) -> str:
+    """`line` with each image outside docs/ pointing at its copy in the site (added to `files`)."""
+
+    def one(m: re.Match[str]) -> str:
+        target = m["target"]
+        if re.match(r"[a-z][a-z0-9+.-]*:", target):
+            return m[0]
+        path = posixpath.normpath(posixpath.join(docs, page_dir, target))  # relative to the repository
+        if path == docs or path.startswith(docs + "/"):
+            return m[0]  # a docs file: MkDocs checks it
+        if path.startswith("..") or not (repo / path).is_file():
+            log.warning(
+                "Doc file '%s' shows the image '%s', which is not a file of the repository", page, target
+            )
+            return m[0]
+        src_uri = f"{SITE_COPY}/{path}"
+        if files.get_file_from_path(src_uri) is None:
+            files.append(File.generated(config, src_uri, abs_src_path=str(repo / path)))
+        return f"![{m['alt']}]({posixpath.relpath(src_uri, page_dir or '.')})"
+
+    return IMAGE.sub(one, line)
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     repo = Path(config["config_file_path"]).parent
     docs = Path(config["docs_dir"]).relative_to(repo).as_posix()
@@ -56,6 +85,13 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         out.append(
             line
             if fenced
-            else _rewrite(line, page_dir, repo, docs, config.get("repo_url"), page.file.src_uri)
+            else _rewrite(
+                _images(line, page_dir, repo, docs, page.file.src_uri, config, files),
+                page_dir,
+                repo,
+                docs,
+                config.get("repo_url"),
+                page.file.src_uri,
+            )
         )
     return "\n".join(out)

@@ -13,7 +13,7 @@ import pytest
 from tsrl.experiments import across
 from tsrl.experiments.aggregate import RESULT_COLUMNS
 
-RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def _study(root: Path, name: str, arms: dict[str, list[float]], comparisons: list[dict]) -> None:
@@ -73,7 +73,7 @@ def test_holm_across_studies_beside_each_studys_own(tmp_path):
 def test_a_committed_study_is_re_derived_from_its_data():
     """pick-place-suction's one comparison, recomputed from its committed results.csv, is its committed
     comparisons.csv row (effect, intervals, exact p: no two seeds' AUC tie)."""
-    folder = RESULTS / "pick-place-suction"
+    folder = STUDIES / "pick-place-features" / "pick-place-suction"
     with open(folder / "comparisons.csv", newline="") as f:
         committed = next(csv.DictReader(f))
     (row,) = across.study_comparisons(folder)
