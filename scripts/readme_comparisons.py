@@ -2,7 +2,8 @@
 experiment.json and results.csv), recomputed from the committed data, Holm-corrected over all of them beside each study's
 own correction (tsrl.experiments.across): prints the table and writes it to docs/results/comparisons-all.csv
 and .md (the docs site's page of it); --check writes nothing and exits 1 when either committed file is not
-what the data give (make reproduce-check).
+what the data give, or a study README's result line quotes a number its data do not give
+(scripts/study_numbers.py; make reproduce-check).
 
     python scripts/readme_comparisons.py [--check]
 """
@@ -14,6 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import study_numbers
 from study_folders import screen_folders
 
 from tsrl.experiments.across import (
@@ -77,9 +79,13 @@ def main(argv: list[str] | None = None) -> int:
                 f"{path.relative_to(ROOT)}: the across-study comparisons differ from the committed data",
                 file=sys.stderr,
             )
-        if differ:
+        quoted = study_numbers.check(rows)
+        for line in quoted:
+            print(line, file=sys.stderr)
+        if differ or quoted:
             return 1
         print(f"{PAGE.relative_to(ROOT)}: {len(rows)} comparisons as the committed data give them")
+        print("studies/*/README.md: every number quoted in a result line is what the data give")
         return 0
     write_files(rows, table)
     print("\n".join(table))
