@@ -308,7 +308,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1; got {args.episodes}")
-    with Measurement(args.save, __file__, "benchmarks/failure_modes.py:table", "docs/training.md") as out:
+    with Measurement(
+        args.save, __file__, "benchmarks/failure_modes.py:table", "studies/training-log/README.md"
+    ) as out:
         rows = [row for run in args.runs for row in failure_modes(run, args.episodes)]
         if out is not None:
             write_rows(out / DATA_CSV, rows)

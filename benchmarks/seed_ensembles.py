@@ -277,7 +277,9 @@ def main() -> None:
     args = parser.parse_args()
     if min(args.ensembles) < 1 or args.updates < 1 or args.rounds < 1 or args.batch < 1:
         parser.error("--ensembles, --updates, --rounds and --batch must be >= 1")
-    with Measurement(args.save, __file__, "benchmarks/seed_ensembles.py:table", "docs/training.md") as out:
+    with Measurement(
+        args.save, __file__, "benchmarks/seed_ensembles.py:table", "studies/training-log/README.md"
+    ) as out:
         rows = measure(args.ensembles, args.updates, args.rounds, args.batch)
         if out is not None:
             write_rows(out / DATA_CSV, rows)
