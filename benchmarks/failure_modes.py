@@ -309,7 +309,7 @@ def main() -> None:
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1; got {args.episodes}")
     with Measurement(
-        args.save, __file__, "benchmarks/failure_modes.py:table", "studies/training-log/README.md"
+        args.save, __file__, "benchmarks/failure_modes.py:table", "studies/manipulation-family/README.md"
     ) as out:
         rows = [row for run in args.runs for row in failure_modes(run, args.episodes)]
         if out is not None:

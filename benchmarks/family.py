@@ -288,7 +288,7 @@ def main(argv: list[str] | None = None) -> None:
         flush=True,
     )
     table = "benchmarks/learning_tables.py:table_family"
-    with Measurement(args.save, __file__, table, "studies/training-log/README.md") as out:
+    with Measurement(args.save, __file__, table, "studies/manipulation-family/README.md") as out:
         done = in_parallel(run_one, work, args.jobs)
         if out is not None:
             save_runs(done, out)

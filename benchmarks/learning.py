@@ -99,7 +99,7 @@ SCREENS: dict[str, dict[str, Any]] = {
 }
 #: The learner-small suite's variants of the final fast preset (LayerNorm critic, UTD 2, batch share 0.5,
 #: no demonstration resets), each in <out>/small-<name>/: smaller networks or batches make each gradient
-#: step cheaper, the 90 s target's bound (studies/training-log/README.md); "final" is the preset itself.
+#: step cheaper, the 90 s target's bound (studies/learner-benchmarks/README.md); "final" is the preset itself.
 SMALL: dict[str, dict[str, Any]] = {
     "final": {},
     "net-128": {"net_arch": (128, 128)},
@@ -492,7 +492,10 @@ def main() -> None:
 
     if args.suite in ("speed", "speed-small"):
         with Measurement(
-            args.save, __file__, "benchmarks/learning_tables.py:speed_table", "studies/training-log/README.md"
+            args.save,
+            __file__,
+            "benchmarks/learning_tables.py:speed_table",
+            "studies/learner-benchmarks/README.md",
         ) as out:
             rows = speed(
                 args.seeds or [0], args.out_dir, only=SPEED_SMALL if args.suite == "speed-small" else None
@@ -545,7 +548,7 @@ def main() -> None:
         flush=True,
     )
     kind = SUITE_TABLES.get(args.suite, "wall")
-    doc = "docs/robots.md" if args.suite == "own-robot" else "studies/training-log/README.md"
+    doc = "docs/robots.md" if args.suite == "own-robot" else "studies/learner-benchmarks/README.md"
     with Measurement(args.save, __file__, f"benchmarks/learning_tables.py:table_{kind}", doc) as out:
         done = in_parallel(run_one, work, args.jobs)
         if out is not None:

@@ -278,7 +278,7 @@ def main() -> None:
     if min(args.ensembles) < 1 or args.updates < 1 or args.rounds < 1 or args.batch < 1:
         parser.error("--ensembles, --updates, --rounds and --batch must be >= 1")
     with Measurement(
-        args.save, __file__, "benchmarks/seed_ensembles.py:table", "studies/training-log/README.md"
+        args.save, __file__, "benchmarks/seed_ensembles.py:table", "studies/manipulation-family/README.md"
     ) as out:
         rows = measure(args.ensembles, args.updates, args.rounds, args.batch)
         if out is not None:
