@@ -1,4 +1,5 @@
-"""Every relative link of README.md, docs/*.md and studies/*/README.md points at a file of the checkout,
+"""Every relative link of README.md, docs/*.md, docs/results/**/*.md, studies/*/README.md and each
+study screen's pages (studies/*/*/*.md) points at a file of the checkout,
 and every #anchor at a heading of its page (GitHub's heading ids, which the docs site uses too:
 mkdocs.yml's pymdownx.slugs.slugify). The docs site's strict build checks its own pages again
 (`make docs`); this also covers the README and the studies, which live outside the site."""
@@ -19,6 +20,9 @@ PAGES = [
     REPO / "CHANGELOG.md",
     *sorted((REPO / "docs").glob("*.md")),
     *sorted((REPO / "studies").glob("*/README.md")),
+    # each screen's pages beside its data (studies/<question>/<screen>/), and the benchmark data's
+    *sorted(p for p in (REPO / "studies").glob("*/*/*.md") if (p.parent / "results.csv").is_file()),
+    *sorted((REPO / "docs" / "results").rglob("*.md")),
 ]
 
 
