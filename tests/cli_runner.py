@@ -6,13 +6,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-#: Seconds-long training (the reach with fs1, not its own baseline observation): 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
+#: Seconds-long training: 100 random steps, evaluation and checkpoint every 100 env steps (2 episodes).
 TINY = [
-    "--obs", "fs1", "--total-timesteps", "200", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
+    "--total-timesteps", "200", "--learning-starts", "100", "--gradient-steps", "10", "--batch-size", "64",
     "--eval-freq", "100", "--eval-episodes", "2", "--checkpoint-freq", "100", "--no-progress",
 ]  # fmt: skip
 #: The run folder TINY's defaults train into.
-RUN_NAME = "tsrl-UR5eReach-v0__fs1__taskspace__ddpg__s0"
+RUN_NAME = "tsrl-UR5eReach-v0__baseline__taskspace__ddpg__s0"  # the reach's own observation
 #: The checkout's root: experiment definitions under experiments/ are found from here.
 REPO = Path(__file__).resolve().parents[1]
 

@@ -75,7 +75,7 @@ def test_bad_perturbations_are_one_line_and_write_nothing(run, perturb, expected
 def test_init_from_fine_tunes_on_the_other_arm(run, tmp_path):
     done = run_tsrl("train", *TINY, "--env", PANDA, "--init-from", str(run), "--out-dir", str(tmp_path))
     assert done.returncode == 0, done.stderr
-    assert (tmp_path / "tsrl-PandaReach-v0__fs1__taskspace__ddpg__s0__init" / "init_from.json").is_file()
+    assert (tmp_path / "tsrl-PandaReach-v0__baseline__taskspace__ddpg__s0__init" / "init_from.json").is_file()
 
 
 @pytest.mark.parametrize(
@@ -83,7 +83,7 @@ def test_init_from_fine_tunes_on_the_other_arm(run, tmp_path):
     [
         (["--algo", "sac"], "algo is 'ddpg' there, 'sac' here"),
         (["--net-arch", "64", "64"], "net_arch is 256 256 there, 64 64 here"),
-        (["--obs", "fs2"], "observation row 5 is quaternion(tcp)"),
+        (["--obs", "fs2"], "observation baseline, action taskspace"),
     ],
 )
 def test_init_from_an_incompatible_run_is_one_line_and_writes_nothing(run, tmp_path, options, expected):

@@ -47,7 +47,7 @@ def trained_run(tmp_path_factory) -> Path:
         "--seed", "0", "--out-dir", str(out), *TINY,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
-    return out / RUN_NAME
+    return out / RUN_NAME.replace("__baseline__", "__fs1__")  # fs1 given, not the reach's own
 
 
 def test_train_writes_a_self_describing_run_folder(trained_run):
@@ -156,14 +156,23 @@ def learning_columns(run_dir: Path) -> list[tuple[str, ...]]:
 def test_demonstrations_off_train_the_run_without_them(off, trained_run, tmp_path):
     demos = tmp_path / "reach.npz"
     recorded = run_tsrl(
-        "demos", "record", "--env", "tsrl/UR5eReach-v0", "--episodes", "2", "--out", str(demos)
+        "demos",
+        "record",
+        "--env",
+        "tsrl/UR5eReach-v0",
+        "--obs",
+        "fs1",
+        "--episodes",
+        "2",
+        "--out",
+        str(demos),
     )
     assert recorded.returncode == 0, recorded.stderr
     out = tmp_path / "runs"
-    result = run_tsrl("train", "--out-dir", str(out), *TINY, "--demos", str(demos), *off)
+    result = run_tsrl("train", "--out-dir", str(out), "--obs", "fs1", *TINY, "--demos", str(demos), *off)
     assert result.returncode == 0, result.stderr
     (run_dir,) = out.iterdir()
-    assert run_dir.name == RUN_NAME  # not ...__demos
+    assert run_dir.name == trained_run.name  # not ...__demos
     assert not (run_dir / "demos.json").exists()
     assert json.loads((run_dir / "config.json").read_text())["agent"]["demos"]["path"] == str(demos)
     assert learning_columns(run_dir) == learning_columns(trained_run)  # the run without demonstrations
