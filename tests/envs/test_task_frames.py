@@ -119,6 +119,7 @@ def test_a_frame_called_tcp_that_is_not_the_robots_tcp_is_one_line_naming_the_ro
         f'name = "ur5e_flange"\nmodel = "{scene_path("ur5e")}"\n'
         'joints = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]\n'
         'tcp = "flange"\nhome = "home"\n'
+        "reach_low = [-1.0, -1.0, 0.0]\nreach_high = [1.0, 1.0, 1.0]\n"  # the goal box inside it: the frame is what fails
     )
     task = dataclasses.replace(load_task("UR5eReach-v0"), robot=str(robot), scene=str(scene_path("reach")))
     with pytest.raises(InvalidConfig) as err:
