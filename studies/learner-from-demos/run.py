@@ -207,7 +207,8 @@ def verdicts() -> None:
         floor = float(np.mean(bc))
         lowest = min(float(r["min_after"]) for r in fast)
         within = sum(r["to95"] not in ("", "nan") and float(r["to95"]) <= target for r in fast)
-        met = "met" if within == len(fast) == 5 else "missed" if len(fast) == 5 else "not decided"
+        # every seed must get there: one finished seed that does not decides "missed"
+        met = "missed" if within < len(fast) else "met" if len(fast) == 5 else "not decided"
         print(
             f"| {task} | {n} | {floor:.2f} | {len(fast)} | {lowest:.2f} | "
             f"{'yes' if lowest >= floor - 0.05 else 'no'} | {within} of {len(fast)} within {target:,} | {met} |"
