@@ -12,12 +12,11 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-import torch as th
 from cli_runner import run_tsrl
-from training_helpers import tiny
+from training_helpers import assert_trains_as_the_npz, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents import make_agent, make_vec_env, resume, train
+from tsrl.agents import resume, train
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import ARRAYS, DemoFileError, DemoSpec, demo_record, load_demos, save_demos
 from tsrl.agents.demo_minari import minari_path
@@ -111,39 +110,10 @@ def test_minaris_own_api_reads_the_dataset(recorded, monkeypatch):
     env.close()
 
 
-def _demo_buffer_and_parameters(path: Path):
-    cfg = tiny(demos=DemoConfig(path=str(path)))
-    model = make_agent(cfg, make_vec_env(cfg))
-    stored = model.replay_buffer.demo_buffer
-    contents = {
-        "observations": {k: v.copy() for k, v in stored.observations.items()},
-        "next_observations": {k: v.copy() for k, v in stored.next_observations.items()},
-        **{name: getattr(stored, name).copy() for name in ("actions", "rewards", "dones", "timeouts")},
-        "ep_start": stored.ep_start.copy(),
-        "ep_length": stored.ep_length.copy(),
-    }
-    model.learn(150)  # 100 random steps, then 10 gradient steps with demonstration rows and BC
-    return contents, {k: v.clone() for k, v in model.policy.state_dict().items()}
-
-
 def test_training_on_the_minari_dataset_is_training_on_the_npz(recorded):
     """Same demonstration buffer contents, and then the same network after 150 env steps, bit for bit."""
     npz, folder = recorded
-    buffer_npz, params_npz = _demo_buffer_and_parameters(npz)
-    buffer_minari, params_minari = _demo_buffer_and_parameters(folder)
-    assert buffer_npz.keys() == buffer_minari.keys()
-    for name, value in buffer_npz.items():
-        if isinstance(value, dict):
-            for key in value:
-                np.testing.assert_array_equal(value[key], buffer_minari[name][key], err_msg=f"{name}[{key}]")
-        else:
-            np.testing.assert_array_equal(value, buffer_minari[name], err_msg=name)
-    d = load_demos(npz)
-    assert buffer_npz["rewards"].shape[0] == d.n_transitions
-    np.testing.assert_array_equal(buffer_npz["actions"][:, 0], d.actions.reshape(-1, 3))  # the test can fail
-    assert params_npz.keys() == params_minari.keys()
-    for key in params_npz:
-        assert th.equal(params_npz[key], params_minari[key]), key
+    assert_trains_as_the_npz(npz, folder)
 
 
 def test_a_run_records_the_dataset_and_notices_it_changed(recorded, tmp_path):
