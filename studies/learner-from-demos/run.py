@@ -5,8 +5,12 @@ data/runs.csv; `table` prints the study's table from that file.
     python studies/learner-from-demos/run.py train ARM TASK --seeds 0 1 2 3 4 [--out DIR]
     python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
 
-Arms (ARMS): bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
-seed 0), 8,000 gradient steps; fast100 / fast10: `--learner fast` with the same demonstrations.
+Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
+seed 0), 8,000 gradient steps; ref100 / ref10: `--learner fast` with the same demonstrations as it is
+from this commit on (the clone kept as a reference the critic chooses against, pre-registration 3);
+fast100 / fast10: the `--learner fast` of commits a6205d2-6840ec2 (pre-registration 2), whose rows are
+kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
+is not a screen: one seed, to find a bug or a cause before the pre-registered runs).
 Every evaluation has 100 episodes on the run's fixed unseen seeds. Per run: final = mean of the last
 three evaluations; fresh = success of the final policy on 100 fresh seeds; to95 = the env steps from
 which the mean of three consecutive evaluations stays at or above 0.95 (curves.sustained_crossing);
@@ -38,6 +42,7 @@ from tsrl.experiments.curves import sustained_crossing
 
 HERE = Path(__file__).resolve().parent
 RUNS_CSV = HERE / "data" / "runs.csv"
+PROBES_CSV = HERE / "data" / "probes.csv"
 COLUMNS = (
     "task",
     "arm",
@@ -71,13 +76,15 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("fast"):
+    if arm.startswith("ref"):
         agent = AgentConfig(learner="fast", demos=demo_cfg)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=BUDGETS[task], eval_freq=EVAL_FREQ.get(task, 2_500),
             eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
         )  # fmt: skip
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, fast100, fast10")
+    if arm.startswith("fast"):
+        raise SystemExit(f"arm {arm!r} is --learner fast of commits a6205d2-6840ec2: run it at one of them")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, ref100, ref10")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -122,10 +129,10 @@ def commit() -> str:
     ).stdout.strip()
 
 
-def train_arm(arm: str, task: str, seeds: list[int], out: Path) -> None:
-    n = int(arm.removeprefix("bc").removeprefix("fast"))
+def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
+    n = int(arm.removeprefix("bc").removeprefix("ref").removeprefix("fast"))
     demos = demo_file(out, task, n)
-    done = {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
+    done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
     for seed in seeds:
         if (task, arm, str(seed)) in done:
             continue
@@ -137,7 +144,7 @@ def train_arm(arm: str, task: str, seeds: list[int], out: Path) -> None:
         else:
             run_dir = train(cfg, parent, progress_bar=False)
         row = {"task": task, "arm": arm, "seed": seed, **metrics(run_dir, cfg), "commit": commit()}
-        append_row(row)
+        append_row(row, PROBES_CSV if probe else RUNS_CSV)
         print(row, flush=True)
 
 
@@ -148,9 +155,9 @@ def read_rows() -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def append_row(row: dict[str, Any]) -> None:
-    new = not RUNS_CSV.is_file()
-    with open(RUNS_CSV, "a", newline="") as f:
+def append_row(row: dict[str, Any], path: Path) -> None:
+    new = not path.is_file()
+    with open(path, "a", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
         if new:
             writer.writeheader()
@@ -223,10 +230,11 @@ def main() -> None:
     t.add_argument("task", choices=sorted(BUDGETS))
     t.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     t.add_argument("--out", type=Path, default=Path("results/learner-from-demos"))
+    t.add_argument("--probe", action="store_true", help="write the row to data/probes.csv (not a screen)")
     sub.add_parser("table")
     args = parser.parse_args()
     if args.command == "train":
-        train_arm(args.arm, args.task, args.seeds, args.out)
+        train_arm(args.arm, args.task, args.seeds, args.out, args.probe)
     else:
         table()
         print()

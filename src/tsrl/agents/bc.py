@@ -104,15 +104,19 @@ def clone_step(
 
 def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
     """`steps` BC gradient steps of the model's actor (its deterministic action, its own optimizer),
-    before any env step; a target actor (DDPG, TD3) is then copied from it."""
+    before any env step; the actors that start as it are then copied from it: the target actor (DDPG,
+    TD3) and the frozen reference (tsrl.agents.reference)."""
     actor: Any = model.actor  # type: ignore[attr-defined]
     actor.set_training_mode(True)
     for _ in range(steps):
         clone_step(partial(actor_action, model), actor.optimizer, *batches.sample(batch_size))
     actor.set_training_mode(False)
-    target = getattr(model, "actor_target", None)
-    if target is not None:
-        target.load_state_dict(actor.state_dict())
+    for name in ("actor_target", "reference"):
+        copy = getattr(model.policy, name, None)
+        if copy is not None:  # parameter by parameter: a ChosenTarget holds the target actor's as its own
+            with th.no_grad():
+                for to, source in zip(copy.parameters(), actor.parameters(), strict=True):
+                    to.copy_(source)
 
 
 class BehaviourCloning(TD3):

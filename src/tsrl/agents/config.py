@@ -40,18 +40,21 @@ LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
 #: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
 #: step, twin critics (TD3) with LayerNorm, UTD 2, half of each batch from the demonstrations, gamma
-#: 0.98, no random steps, and TD3+BC's anchored actor loss after a warm-up in which it only clones.
-#: demos_reset_prob applies only where demonstrations are on; bc_pretrain is not an option.
+#: 0.98, no random steps, TD3+BC's anchored actor loss after a warm-up in which it only clones, the
+#: clone kept frozen beside the actor with the critic choosing between them in acting and in the TD
+#: target (IBRL; tsrl.agents.reference), and the observation normaliser fixed at the demonstrations'
+#: statistics (as the clone was fitted). demos_reset_prob applies only where demonstrations are on;
+#: bc_pretrain, reference and fixed_normalizer are not options.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
         "algo": "ddpg", "layer_norm": "none", "utd": None, "learning_starts": 500, "gamma": 0.95,
         "action_noise": 0.2, "demos_batch_share": 0.125, "demos_reset_prob": 0.0, "demos_bc_anchor": None,
-        "demos_bc_anchor_warmup": 0, "bc_pretrain": False,
+        "demos_bc_anchor_warmup": 0, "bc_pretrain": False, "reference": False, "fixed_normalizer": False,
     },
     "fast": {
         "algo": "td3", "layer_norm": "critic", "utd": 2.0, "learning_starts": 0, "gamma": 0.98,
-        "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 0.25,
-        "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True,
+        "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 2.5,
+        "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True, "reference": True, "fixed_normalizer": True,
     },
 }  # fmt: skip
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
@@ -348,6 +351,29 @@ class AgentConfig:
             raise InvalidConfig(f"bc_dropout must be in [0, 1); got {self.bc_dropout!r}")
         if self.algo == BC:
             self._check_bc()
+
+    @property
+    def starts_from_clone(self) -> bool:
+        """The actor is pre-trained by behaviour cloning before the first env step (the learner's
+        bc_pretrain, with demonstrations and bc_steps > 0)."""
+        return bool(LEARNER_PRESETS[self.learner]["bc_pretrain"]) and self.demos.active and self.bc_steps > 0
+
+    @property
+    def has_reference(self) -> bool:
+        """The clone stays frozen beside a DDPG/TD3 actor, the critic choosing (tsrl.agents.reference)."""
+        return (
+            self.starts_from_clone
+            and bool(LEARNER_PRESETS[self.learner]["reference"])
+            and self.algo in ("ddpg", "td3")
+        )
+
+    @property
+    def fixed_normalizer(self) -> bool:
+        """The observation normaliser keeps the demonstrations' statistics and no env step moves them:
+        behaviour cloning, and a learner whose actor starts as a clone fitted under them."""
+        if self.algo == BC:
+            return True
+        return self.starts_from_clone and bool(LEARNER_PRESETS[self.learner]["fixed_normalizer"])
 
     def _check_bc(self) -> None:
         """Behaviour cloning needs demonstrations and takes none of the options of learning from

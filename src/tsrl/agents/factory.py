@@ -24,9 +24,10 @@ from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
 from .action_penalty import attach_action_penalty
 from .bc import BCPolicy, BehaviourCloning, DemoBatches, pretrain_actor
-from .config import ALGOS, BC, LEARNER_PRESETS, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
+from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
+from .reference import ReferenceTD3Policy
 
 #: stable-baselines3's (or sb3-contrib's) class of each algorithm name (DDPG for "ddpg", ...).
 ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
@@ -157,8 +158,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo == BC:
         return _make_cloner(cfg, env, kwargs)
-    policy = policy_for(a.algo, a.layer_norm)  # type: ignore[arg-type]
-    if a.layer_norm != "none":
+    policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm)  # type: ignore[arg-type]
+    if a.layer_norm != "none" or a.has_reference:
         kwargs["policy_kwargs"]["layer_norm"] = a.layer_norm
     if a.algo in ("ddpg", "td3") and a.action_noise > 0:
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
@@ -174,8 +175,10 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
         normalizer = env if isinstance(env, VecNormalize) else None
         demos = attach_demos(model, a.demos, normalizer)
-        if LEARNER_PRESETS[a.learner]["bc_pretrain"] and a.bc_steps > 0:  # the actor starts as BC's
+        if a.starts_from_clone:  # the actor (and its reference, target) starts as BC's
             pretrain_actor(model, DemoBatches(demos, normalizer), a.bc_steps, a.batch_size)
+        if normalizer is not None and a.fixed_normalizer:  # the statistics the clone was fitted under
+            normalizer.training = False
     else:
         model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
@@ -193,6 +196,6 @@ def _make_cloner(cfg: TrainConfig, env: VecEnv, kwargs: dict[str, Any]) -> Behav
     model = BehaviourCloning(BCPolicy, env, **kwargs)
     normalizer = env if isinstance(env, VecNormalize) else None
     model.set_demos(load_run_demos(cfg.agent.demos, env, normalizer), normalizer)
-    if normalizer is not None:  # the demonstrations' statistics, as cloned: no env step moves them
+    if normalizer is not None and cfg.agent.fixed_normalizer:  # the demonstrations' statistics, as cloned
         normalizer.training = False
     return model

@@ -157,8 +157,6 @@ class _Session:
         elif cfg.agent.algo == BC:
             model = load_checkpoint(checkpoint, ALGO_CLASSES[BC], self.venv, self.normalizer)
             assert isinstance(model, BehaviourCloning)
-            if self.normalizer is not None:  # the statistics came back with the checkpoint: kept as saved
-                self.normalizer.training = False
             model.set_demos(load_run_demos(cfg.agent.demos, self.venv, None), self.normalizer)
             model._n_updates = checkpoint.state.bc_gradient_steps
             state = checkpoint.state
@@ -180,6 +178,8 @@ class _Session:
                 assert checkpoint.rng is not None  # verified for training
                 curriculum = checkpoint.rng.get(DEMO_RESETS)  # None in a checkpoint from before it was kept
                 self.venv.env_method("continue_from", state.env_steps, state.episodes, curriculum)
+        if checkpoint is not None and self.normalizer is not None and cfg.agent.fixed_normalizer:
+            self.normalizer.training = False  # the statistics came back with the checkpoint: kept as saved
         last_row = truncate_progress(self.run_dir, state.clock if checkpoint else -1, _clock_column(cfg))
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
         callback = _SafePointCallback(self, state, last_row)

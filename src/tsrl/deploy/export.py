@@ -69,12 +69,14 @@ class _Actor(th.nn.Module):
     """The SB3 actor's deterministic action of raw inputs: VecNormalize's rule, then the actor.
 
     Normalised input: clip((x - mean) / sqrt(var + eps), -clip, clip) in float64 (as VecNormalize
-    computes it), cast to float32 (as SB3 casts observations); DDPG/TD3: the actor's tanh output;
+    computes it), cast to float32 (as SB3 casts observations); DDPG/TD3: the policy's deterministic
+    action (the actor's tanh output; with a reference, the critic's choice, tsrl.agents.reference);
     SAC: tanh of the mean action (SB3's deterministic action).
     """
 
     def __init__(self, model: BaseAlgorithm, keys: tuple[str, ...], normalizer: VecNormalize | None):
         super().__init__()
+        self.policy: Any = model.policy
         self.actor: Any = model.policy.actor  # an SB3 Actor (TD3/DDPG) or SAC Actor
         self.keys = keys
         self.sac = hasattr(self.actor, "get_action_dist_params")
@@ -98,7 +100,7 @@ class _Actor(th.nn.Module):
         if self.sac:
             mean_actions, _, _ = self.actor.get_action_dist_params(obs)
             return th.tanh(mean_actions)
-        return self.actor(obs)
+        return self.policy._predict(obs, deterministic=True)
 
 
 def export_run(
