@@ -33,7 +33,9 @@ def backends(export):
 
 def conformance(backend) -> None:
     """What the deploy loop relies on, for any backend: names, period, a finite state on a clock that
-    moves with the periods, holding still when sent the measured pose, a small move when sent one."""
+    moves on (by exactly the periods waited on MuJoCo's simulated clock), holding still when sent the
+    measured pose, a small move when sent one. Nothing depends on the machine's speed: on a wall clock
+    the move is waited for (up to 2,000 periods), not timed."""
     n = len(backend.joint_names)
     assert n >= 1 and len(set(backend.joint_names)) == n
     assert backend.period > 0
@@ -48,7 +50,10 @@ def conformance(backend) -> None:
             backend.send(start)
             backend.wait()
         held = backend.read_state()
-        assert backend.now() - t0 == pytest.approx(100 * backend.period, rel=0.2)
+        if isinstance(backend, MujocoBackend):  # simulated time: the periods waited, exactly
+            assert backend.now() - t0 == pytest.approx(100 * backend.period)
+        else:  # a wall clock: it moved on; by how much is the machine's, so not checked
+            assert backend.now() > t0
         assert held.time >= state.time
         assert np.abs(held.q - start).max() < 0.01  # rad: it held still
         target = start.copy()
@@ -56,11 +61,13 @@ def conformance(backend) -> None:
         for i in range(1, 251):
             backend.send(start + (target - start) * min(i / 250, 1.0))
             backend.wait()
-        for _ in range(250):
-            backend.send(target)
+        for i in range(2000):  # 250 periods, then on until the wrist is there (a wall clock's arm
+            backend.send(target)  # moves as fast as its machine runs it)
             backend.wait()
-        moved = backend.read_state()
-        assert abs(moved.q[-1] - target[-1]) < 0.003
+            moved = backend.read_state()
+            if i >= 249 and abs(moved.q[-1] - target[-1]) < 0.003:
+                break
+        assert np.isfinite(moved.q).all() and abs(moved.q[-1] - target[-1]) < 0.003
         assert np.abs(moved.q[:-1] - start[:-1]).max() < 0.01
     finally:
         backend.close()
