@@ -1,0 +1,162 @@
+"""The fast learner's reference (IBRL, tsrl.agents.reference, issue 55): per row, the proposal whose
+smaller twin-critic value is higher is taken, in acting (predict, and so evaluation), in the TD
+target, and in the exported policy; the reference stays the clone through training and checkpoints;
+the normaliser keeps the demonstrations' statistics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+from stable_baselines3 import TD3
+from stable_baselines3.common.logger import configure
+from torch import nn
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
+from tsrl.agents.config import DemoConfig
+from tsrl.agents.demo_files import save_demos
+from tsrl.agents.demonstrators import record_demos
+from tsrl.agents.reference import ChosenTarget, ReferenceTD3Policy, choose
+
+REACH = "tsrl/UR5eReach-v0"
+
+
+class HandCritic(nn.Module):
+    """Twin heads Q_i(s, a) = scale_i * (w . a) with a per-row w: the hand-built critic of the tests."""
+
+    def __init__(self, w: th.Tensor, scales: tuple[float, float]):
+        super().__init__()
+        self.w, self.scales = w, scales
+
+    def forward(self, obs: object, actions: th.Tensor) -> tuple[th.Tensor, ...]:
+        value = (self.w * actions).sum(dim=1, keepdim=True)
+        return tuple(scale * value for scale in self.scales)
+
+
+def test_choose_takes_the_proposal_whose_smaller_head_is_higher():
+    actor = th.tensor([[0.5, 0.0], [0.5, 0.0], [0.2, 0.0], [0.0, 0.3]])
+    reference = th.tensor([[-0.5, 0.0], [0.9, 0.0], [0.2, 0.0], [0.0, -0.3]])
+    w = th.tensor([[-1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    # Row 0: both heads value the reference more (0.5 vs -0.5): reference. Row 1: 0.9 > 0.5: reference.
+    # Row 2: a tie: the actor. Row 3: the actor (0.3 vs -0.3).
+    chosen = choose(HandCritic(w, (1.0, 2.0)), None, actor, reference)  # type: ignore[arg-type]
+    expected = th.stack([reference[0], reference[1], actor[2], actor[3]])
+    assert th.equal(chosen, expected)
+    # Heads that disagree in sign: the smaller decides. Q1 = w.a, Q2 = -3 w.a: min picks the lower w.a.
+    disagree = choose(HandCritic(w, (1.0, -3.0)), None, actor, reference)  # type: ignore[arg-type]
+    assert th.equal(disagree, th.stack([actor[0], actor[1], actor[2], reference[3]]))
+
+
+@pytest.fixture(scope="module")
+def reach_demos(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("demos") / "reach.npz"
+    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+
+
+def fast(path: Path, warmup: int | None = None) -> TrainConfig:
+    demos = DemoConfig(path=str(path), bc_anchor_warmup=warmup)
+    return TrainConfig(
+        env_id=REACH, obs="fs1", total_timesteps=400,
+        agent=AgentConfig(learner="fast", batch_size=64, bc_steps=300, demos=demos),
+    )  # fmt: skip
+
+
+def _set_constant(actor: nn.Module, value: float) -> None:
+    """A TD3 actor whose every action component is `value` (last Linear: zero weights, atanh bias)."""
+    last = [m for m in actor.modules() if isinstance(m, nn.Linear)][-1]
+    with th.no_grad():
+        last.weight.zero_()
+        last.bias.fill_(float(np.arctanh(value)))
+
+
+def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
+    rng = np.random.default_rng(seed)
+    space = model.observation_space
+    return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
+
+
+def test_acting_and_the_td_target_take_the_critics_choice(reach_demos):
+    cfg = fast(reach_demos)
+    model = make_agent(cfg, make_vec_env(cfg))
+    policy = model.policy
+    assert isinstance(policy, ReferenceTD3Policy) and isinstance(model.actor_target, ChosenTarget)
+    _set_constant(policy.actor, 0.5)
+    _set_constant(policy.actor_target.actor, 0.5)
+    _set_constant(policy.reference, -0.5)
+    obs = _obs_batch(model, 64, seed=1)
+    sign = th.where(obs["observation"][:, :1] > 0, 1.0, -1.0)  # the critics prefer +a where it is > 0
+    for critic in (policy.critic, policy.critic_target):
+        w = sign.repeat(1, model.action_space.shape[0])  # type: ignore[index]
+        hand = HandCritic(w, (1.0, 2.0))
+        critic.forward = hand.forward  # type: ignore[method-assign]
+    expected = sign * 0.5 * th.ones(64, model.action_space.shape[0])  # type: ignore[index]
+    with th.no_grad():
+        assert th.equal(policy._predict(obs, deterministic=True), expected)
+        assert th.equal(model.actor_target(obs), expected)
+    actions, _ = model.predict({k: v.numpy() for k, v in obs.items()}, deterministic=True)
+    np.testing.assert_array_equal(actions, expected.numpy())
+    assert 0.2 < model.actor_target.reference_share < 0.8  # both proposals won rows: the test can fail
+
+
+def test_the_reference_stays_the_clone_and_the_normaliser_the_demonstrations(reach_demos, tmp_path):
+    cfg = fast(reach_demos, warmup=0)
+    venv = make_vec_env(cfg)
+    model = make_agent(cfg, venv)
+    policy = model.policy
+    clone = [p.clone() for p in policy.actor.parameters()]
+    for copy in (policy.reference, policy.actor_target):  # pretrain_actor set both to the clone
+        assert all(th.equal(a, b) for a, b in zip(copy.parameters(), clone, strict=True))
+    stats = {k: (rms.mean.copy(), rms.var.copy()) for k, rms in venv.obs_rms.items()}
+    assert not venv.training
+    model.set_logger(configure(None, []))
+    model.learn(400)
+    assert all(th.equal(a, b) for a, b in zip(policy.reference.parameters(), clone, strict=True))
+    assert not all(th.equal(a, b) for a, b in zip(policy.actor.parameters(), clone, strict=True))
+    for key, (mean, var) in stats.items():  # 400 env steps, and the statistics did not move
+        np.testing.assert_array_equal(venv.obs_rms[key].mean, mean)
+        np.testing.assert_array_equal(venv.obs_rms[key].var, var)
+    model.save(tmp_path / "model.zip")
+    loaded = TD3.load(
+        tmp_path / "model.zip",
+        custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
+    )
+    assert isinstance(loaded.policy, ReferenceTD3Policy)
+    assert all(th.equal(a, b) for a, b in zip(loaded.policy.reference.parameters(), clone, strict=True))
+    obs = _obs_batch(model, 32, seed=2)
+    np.testing.assert_array_equal(
+        loaded.predict({k: v.numpy() for k, v in obs.items()}, deterministic=True)[0],
+        model.predict({k: v.numpy() for k, v in obs.items()}, deterministic=True)[0],
+    )
+
+
+def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
+    from tsrl.deploy.contract import POLICY, read_contract
+    from tsrl.deploy.export import TOLERANCE, export_policy, task_observations, torch_actions
+    from tsrl.deploy.exported import exported_env
+    from tsrl.deploy.policy import OnnxPolicy
+
+    cfg = fast(reach_demos)
+    venv = make_vec_env(cfg)
+    model = make_agent(cfg, venv)
+    with th.no_grad():  # an actor that has moved away from its clone: the two proposals differ
+        for p in model.policy.actor.parameters():
+            p.add_(0.3 * th.randn_like(p))
+    out = tmp_path / "export"
+    export_policy(model, venv, cfg, out, None, None, None)
+    contract = read_contract(out)
+    observations = task_observations(exported_env(out, contract), 500, seed=7)
+    keys = tuple(i["name"] for i in contract["policy"]["inputs"])
+    onnx = OnnxPolicy(out / POLICY, keys).batch(observations)
+    np.testing.assert_allclose(onnx, torch_actions(model, venv, observations), rtol=0, atol=TOLERANCE)
+    obs = venv.normalize_obs(observations)
+    with th.no_grad():
+        tensors = {k: th.as_tensor(v, dtype=th.float32) for k, v in obs.items()}
+        actor = model.policy.actor(tensors).numpy()
+        reference = model.policy.reference(tensors).numpy()
+    from_reference = np.all(np.abs(onnx - reference) < TOLERANCE, axis=1)
+    from_actor = np.all(np.abs(onnx - actor) < TOLERANCE, axis=1)
+    assert np.all(from_reference | from_actor)
+    assert from_reference.any() and from_actor.any()  # both were chosen: the export is not one of them
