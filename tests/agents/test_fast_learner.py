@@ -40,7 +40,7 @@ def fast(path: Path, **agent: object) -> TrainConfig:
 def test_the_fast_preset_resolves_and_given_options_win(reach_demos):
     a = fast(reach_demos).agent
     assert (a.algo, a.gamma, a.learning_starts, a.action_noise) == ("td3", 0.98, 0, 0.1)
-    assert (a.demos.bc_anchor, a.demos.bc_anchor_warmup, a.layer_norm) == (2.5, 2_500, "critic")
+    assert (a.demos.bc_anchor, a.demos.bc_anchor_warmup, a.layer_norm) == (0.25, 2_500, "critic")
     given = fast(reach_demos, algo="ddpg", gamma=0.95).agent
     assert (given.algo, given.gamma) == ("ddpg", 0.95)
     paper = AgentConfig()

@@ -53,7 +53,7 @@ LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     },
     "fast": {
         "algo": "td3", "layer_norm": "critic", "utd": 2.0, "learning_starts": 0, "gamma": 0.98,
-        "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 2.5,
+        "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 0.25,
         "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True, "reference": True, "fixed_normalizer": True,
     },
 }  # fmt: skip

@@ -45,6 +45,9 @@ class ChosenTarget(nn.Module):
     parameters are TD3's polyak targets, and the reference and critic stay where the policy keeps them.
     `reference_share` is the share of rows the reference won in the last call."""
 
+    _reference: nn.Module
+    _critic: nn.Module
+
     def __init__(self, actor_target: nn.Module, reference: nn.Module, critic_target: nn.Module):
         super().__init__()
         self.actor = actor_target
@@ -58,9 +61,6 @@ class ChosenTarget(nn.Module):
         self.reference_share = float((chosen == proposals[1]).all(dim=1).float().mean())
         return chosen
 
-    def set_training_mode(self, mode: bool) -> None:
-        self.actor.set_training_mode(mode)
-
 
 class ReferenceTD3Policy(LayerNormTD3Policy):
     """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor the
@@ -73,7 +73,8 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         self.reference.load_state_dict(self.actor.state_dict())
         self.reference.requires_grad_(False)
         self.reference.set_training_mode(False)
-        self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)
+        # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
+        self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         return choose(self.critic, observation, self.actor(observation), self.reference(observation))
