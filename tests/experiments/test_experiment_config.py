@@ -93,6 +93,24 @@ def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
         ("[demos]\nseed = 1", ["missing key 'episodes' in [demos]"]),
         ('[demos]\nepisodes = 5\n[agent.demos]\npath = "d.npz"', ["leave [agent.demos] path unset"]),
         (
+            '[[budgets]]\nenv = "tsrl/PandaReach-v0"\ntotal_timesteps = 100',
+            ["[budgets[0]] env", "not in the grid"],
+        ),
+        (
+            '[[budgets]]\nenv = "tsrl/UR5eReach-v0"\ntotal_timesteps = 0',
+            ["total_timesteps must be an integer >= 1"],
+        ),
+        ('[[budgets]]\nenv = "tsrl/UR5eReach-v0"', ["missing key 'total_timesteps' in [budgets[0]]"]),
+        (
+            '[[budgets]]\nenv = "tsrl/UR5eReach-v0"\ntotal_timesteps = 100\n' * 2,
+            ["[budgets[1]] env 'tsrl/UR5eReach-v0' has a budget already"],
+        ),
+        (
+            '[[budgets]]\nenv = "tsrl/UR5eReach-v0"\ntotal_timesteps = 100\n[[finetune]]\n'
+            + 'from_env = "tsrl/UR5eReach-v0"\nenv = "tsrl/UR5eReach-v0"',
+            ["[[budgets]] with [[finetune]]"],
+        ),
+        (
             'action = ["joint"]\n[demos]\nepisodes = 5',
             ["[demos]", "got 'joint'", "taskspace or taskspace_orient"],
         ),
@@ -111,6 +129,31 @@ def test_malformed_file_error_names_the_field_and_the_accepted_values(text, expe
     assert message.startswith(str(path)) and "\n" not in message
     for part in expected:
         assert part in message
+
+
+def test_budgets_give_their_env_its_own_budget_and_evaluations(tmp_path):
+    (tmp_path / "tasks").mkdir()
+    task = tmp_path / "tasks" / "reach.toml"
+    task.write_text((REPO / "experiments" / "tasks" / "reach-2cm.toml").read_text())
+    path = tmp_path / "budgets.toml"
+    path.write_text(
+        'env = ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0", "tasks/reach.toml"]\nseeds = [0, 1]\n'
+        "total_timesteps = 300\neval_freq = 100\n"
+        '[[budgets]]\nenv = "tsrl/PandaReach-v0"\ntotal_timesteps = 600\neval_freq = 200\n'
+        '[[budgets]]\nenv = "tasks/reach.toml"\ntotal_timesteps = 900\n'
+    )
+    exp = load_experiment(path)
+    budgets = {(Path(c.env_id).name, c.seed): (c.total_timesteps, c.eval_freq) for c in exp.runs()}
+    assert budgets == {
+        (env, seed): budget
+        for env, budget in (
+            ("UR5eReach-v0", (300, 100)),
+            ("PandaReach-v0", (600, 200)),
+            ("reach.toml", (900, 100)),
+        )
+        for seed in (0, 1)
+    }
+    assert exp.arms() == ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0", "reach"]  # a budget is no variant
 
 
 def test_unknown_name_lists_the_known_experiments(monkeypatch):

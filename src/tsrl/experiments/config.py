@@ -158,9 +158,30 @@ class DemoRecipe:
 
 
 @dataclass(frozen=True)
+class TaskBudget:
+    """A budget of its own for one env of the grid (the file's [[budgets]] tables), where tasks of one
+    experiment need different lengths of training: its runs get these instead of the experiment's."""
+
+    env: str
+    """One of the grid's env values."""
+    total_timesteps: int
+    """Budget of each run on `env` in env steps."""
+    eval_freq: int | None = None
+    """Evaluate every this many env steps; None: the experiment's eval_freq."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.env, str) or not self.env:
+            raise InvalidConfig(f"env must be an env id or task file; got {self.env!r}")
+        check_int("total_timesteps", self.total_timesteps, 1)
+        if self.eval_freq is not None:
+            check_int("eval_freq", self.eval_freq, 1)
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     """A grid of training runs: env x obs x action x algo x seeds, with one budget and one evaluation
-    schedule. Each list-valued field is an axis of the grid; `runs()` expands it."""
+    schedule, or one per env ([[budgets]]). Each list-valued field is an axis of the grid; `runs()`
+    expands it."""
 
     name: str
     """Experiment name; results go to <out-dir>/<name>/. A file's name without .toml."""
@@ -198,6 +219,9 @@ class ExperimentConfig:
     """Evaluation-only arms (the file's [[evaluate]] tables), run after training."""
     finetune: tuple[FineTune, ...] = ()
     """Fine-tuning runs from another env's runs (the file's [[finetune]] tables), after the grid's."""
+    budgets: tuple[TaskBudget, ...] = ()
+    """Per-env budgets (the file's [[budgets]] tables): an env listed here has its own total_timesteps
+    and eval_freq; the others have the experiment's."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or "/" in self.name or self.name.startswith("."):
@@ -214,6 +238,7 @@ class ExperimentConfig:
         if min(self.seeds) < 0:
             raise InvalidConfig(f"seeds must be integers >= 0; got {min(self.seeds)}")
         self._check_finetune()
+        self._check_budgets()
         self._check_demos()
         self.runs()  # validates every grid point (obs, action, algo, seeds, budget) as a TrainConfig
         self._check_evaluations()
@@ -281,6 +306,19 @@ class ExperimentConfig:
                     f"[finetune[{i}]] from_env {f.from_env!r} is not in the grid; accepted: {', '.join(self.env)}"
                 )
 
+    def _check_budgets(self) -> None:
+        seen: set[str] = set()
+        for i, b in enumerate(self.budgets):
+            if b.env not in self.env:
+                raise InvalidConfig(
+                    f"[budgets[{i}]] env {b.env!r} is not in the grid; accepted: {', '.join(self.env)}"
+                )
+            if b.env in seen:
+                raise InvalidConfig(f"[budgets[{i}]] env {b.env!r} has a budget already")
+            seen.add(b.env)
+        if self.budgets and self.finetune:  # a fine-tuning run starts once its source is at its budget
+            raise InvalidConfig("[[budgets]] with [[finetune]]: accepted: one budget for every env")
+
     def _check_demos(self) -> None:
         if self.demos is None:
             return
@@ -323,13 +361,14 @@ class ExperimentConfig:
     def _run(
         self, env: str, obs: str, action: str, algo: Algo | Literal[""], seed: int, folder: Path
     ) -> TrainConfig:
+        budget = next((b for b in self.budgets if b.env == env), None)
         cfg = TrainConfig(
             env_id=env,
             obs=obs,
             action=action,
             seed=seed,
-            total_timesteps=self.total_timesteps,
-            eval_freq=self.eval_freq,
+            total_timesteps=self.total_timesteps if budget is None else budget.total_timesteps,
+            eval_freq=self.eval_freq if budget is None or budget.eval_freq is None else budget.eval_freq,
             eval_episodes=self.eval_episodes,
             checkpoint_freq=self.checkpoint_freq,
             agent=dataclasses.replace(self.agent, algo=algo or self.agent.algo),
@@ -368,7 +407,7 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             else e
             for e in envs
         ]
-    for kind, key in (("evaluate", "env"), ("finetune", "env"), ("finetune", "from_env")):
+    for kind, key in (("evaluate", "env"), ("finetune", "env"), ("finetune", "from_env"), ("budgets", "env")):
         for table in data.get(kind, []) if isinstance(data.get(kind), list) else []:
             env = table.get(key) if isinstance(table, dict) else None
             if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():

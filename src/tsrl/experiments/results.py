@@ -26,7 +26,8 @@ def find_runs(results_dir: Path) -> list[Path]:
     return runs
 
 
-#: Config fields that are grid axes, or that do not change what a run learns: not part of a variant.
+#: Config fields that are grid axes, set per env ([[budgets]]), or that do not change what a run
+#: learns: not part of a variant.
 _NOT_VARIANT = {
     "env_id",
     "obs",
@@ -34,6 +35,7 @@ _NOT_VARIANT = {
     "agent.algo",
     "seed",
     "total_timesteps",
+    "eval_freq",
     "checkpoint_freq",
     "torch_threads",
 }
