@@ -1,4 +1,4 @@
-"""benchmarks/merge_saved.py: saved family runs of two measurements merged into one table (or compared
+"""studies/manipulation-family/merge_saved.py: saved family runs of two measurements merged into one table (or compared
 variant by variant), and its refusals (a run in two sources, sources of different tables, a source that
 is not a measurement, a comparison of two tasks)."""
 
@@ -10,23 +10,25 @@ import shutil
 from pathlib import Path
 
 import pytest
-from benchmark_modules import load_benchmark
+from benchmark_modules import load_study
 
 DATA = Path(__file__).resolve().parents[1] / "docs" / "results" / "benchmarks"
 
-merge_saved = load_benchmark("merge_saved")
-learning_tables = load_benchmark("learning_tables")
+from tsrl.experiments.milestones import RUN_FILES, saved_runs
+
+merge_saved = load_study("manipulation-family", "merge_saved")
+family_tables = load_study("manipulation-family", "family_tables")
 
 
 def test_merged_runs_render_one_row_per_task_with_every_seed(tmp_path: Path) -> None:
     metas, runs = merge_saved.plan(["family-stack-peg", "family-peg-s2"])
     assert set(metas) == {"family-stack-peg", "family-peg-s2"}
     merge_saved.copy_runs(runs, tmp_path)
-    rows = learning_tables.table_family(tmp_path)[2:]
+    rows = family_tables.table_family(tmp_path)[2:]
     peg = [r for r in rows if "PandaPegInsert" in r]
     assert len(peg) == 1 and "| 0, 1, 2 |" in peg[0]
     for rel, run_dir in runs.items():
-        for name in learning_tables.RUN_FILES:
+        for name in RUN_FILES:
             assert (tmp_path / rel / name).read_bytes() == (run_dir / name).read_bytes()
 
 
@@ -40,7 +42,7 @@ def test_sources_of_different_tables_and_non_measurements_are_refused(tmp_path: 
         shutil.copytree(DATA / name, tmp_path / name)
     meta_path = tmp_path / "family-peg-s2" / "meta.json"
     meta = json.loads(meta_path.read_text())
-    meta_path.write_text(json.dumps(meta | {"table": "benchmarks/learning_tables.py:table_demos"}))
+    meta_path.write_text(json.dumps(meta | {"table": "benchmarks/family_tables.py:table_demos"}))
     with pytest.raises(SystemExit, match="the sources' tables differ"):
         merge_saved.plan(["family-stack-peg", "family-peg-s2"], tmp_path)
     with pytest.raises(SystemExit, match="no saved measurement 'nothing-here'"):
@@ -66,13 +68,13 @@ def _auc_iqm(run_dirs: list[Path]) -> float:
 def test_comparison_puts_the_baseline_first_and_differences_its_auc_iqm(tmp_path: Path) -> None:
     _, runs = merge_saved.plan(["family-push-action-l2", "family-push-fast-intel"])
     merge_saved.copy_runs(runs, tmp_path)
-    lines = learning_tables.table_family_comparison(tmp_path)
+    lines = family_tables.table_family_comparison(tmp_path)
     assert "minus learner fast, AUC IQM" in lines[0]
     baseline, penalty = (line.split(" | ") for line in lines[2:4])
     assert baseline[0] == "| learner fast" and baseline[1] == "2, 3" and baseline[5] == "-"
     assert penalty[0] == "| learner fast, action penalty 1" and penalty[1] == "0, 1, 2, 3, 4"
     groups: dict[str, list[Path]] = {"fast": [], "penalty": []}
-    for run_dir in learning_tables.saved_runs(tmp_path):
+    for run_dir in saved_runs(tmp_path):
         groups["penalty" if "action-l2" in run_dir.name else "fast"].append(run_dir)
     expected = _auc_iqm(groups["penalty"]) - _auc_iqm(groups["fast"])
     point, interval = penalty[5].split(" [")
@@ -85,21 +87,15 @@ def test_comparison_of_two_tasks_is_refused(tmp_path: Path) -> None:
     _, runs = merge_saved.plan(["family-stack-peg"])
     merge_saved.copy_runs(runs, tmp_path)
     with pytest.raises(SystemExit, match="accepted: one task and one variant that adds least"):
-        learning_tables.table_family_comparison(tmp_path)
+        family_tables.table_family_comparison(tmp_path)
 
 
 def test_a_task_files_runs_are_a_variant_of_the_family_task_its_solver_names(tmp_path: Path) -> None:
     _, runs = merge_saved.plan(["family-push-demos300", "family-push-half-step-demos300"])
     merge_saved.copy_runs(runs, tmp_path)
-    lines = learning_tables.table_family_comparison(tmp_path)
+    lines = family_tables.table_family_comparison(tmp_path)
     assert lines[0].startswith("| `tsrl/PandaPush-v0` |")
     baseline, half_step = (line.split(" | ") for line in lines[2:4])
     assert baseline[0] == "| learner fast, 300 demonstrations" and baseline[5] == "-"
     assert half_step[0] == "| panda_push_half_step.toml, learner fast, 300 demonstrations"
     assert half_step[1] == "0, 1, 2, 3, 4" and half_step[6] != "-"
-
-
-def test_a_task_file_outside_benchmarks_task_files_is_refused() -> None:
-    assert learning_tables.compared_task("tsrl/PandaPush-v0") == ("tsrl/PandaPush-v0", [])
-    with pytest.raises(SystemExit, match="no task file 'elsewhere.toml' in .*task_files; accepted"):
-        learning_tables.compared_task("/some/machine/elsewhere.toml")

@@ -371,3 +371,18 @@ def test_a_finetune_from_an_env_outside_the_grid_is_one_error(tmp_path):
         match=r"\[finetune\[0\]\] from_env 'tsrl/UR5ePickPlace-v0' is not in the grid; accepted: ",
     ):
         load_experiment(definition)
+
+
+def test_run_configs_trains_configs_without_a_definition_and_reuses_them(tmp_path):
+    from training_helpers import tiny
+
+    from tsrl.experiments.pool import run_configs
+
+    runs = [tiny(seed=0, total=100), tiny(seed=1, total=100)]
+    first = run_configs(runs, tmp_path / "suite", workers=2, stream=io.StringIO())
+    assert [(o.run_name, o.status, o.env_steps) for o in first] == [
+        (c.run_name, "trained", 100) for c in runs
+    ]
+    assert not (tmp_path / "suite" / "experiment.json").exists()
+    again = run_configs(runs, tmp_path / "suite", workers=1, stream=io.StringIO())
+    assert [o.status for o in again] == ["skipped", "skipped"]

@@ -100,6 +100,24 @@ def run_experiment(
     return [outcomes[cfg.run_name] for cfg in runs if cfg.run_name in outcomes]
 
 
+def run_configs(
+    runs: list[TrainConfig], exp_dir: Path | str, workers: int | None = None, stream: TextIO | None = None
+) -> list[RunOutcome]:
+    """Runs `runs` (of distinct run names) into `exp_dir` on local worker processes, as
+    `run_experiment` runs a grid but without a definition file (no experiment.json, demonstrations or
+    fine-tuning): a finished run is reused, an interrupted one resumed; outcomes in the order of `runs`."""
+    exp_dir = Path(exp_dir)
+    _check_run_folders(runs, exp_dir)
+    exp_dir.mkdir(parents=True, exist_ok=True)
+    display = Progress(runs, exp_dir, stream if stream is not None else sys.stderr)
+    outcomes: dict[str, RunOutcome] = {}
+    try:
+        _schedule(runs, _LocalPool(exp_dir, min(local_workers(workers), len(runs))), display, outcomes)
+    finally:
+        display.close()
+    return [outcomes[cfg.run_name] for cfg in runs]
+
+
 def _check_run_folders(runs: list[TrainConfig], exp_dir: Path) -> None:
     """Raises InvalidConfig (one line) where a run's folder holds a run of another config: a changed
     definition is refused before anything is written, experiment.json included, instead of each of its

@@ -1,11 +1,11 @@
 """One table from several saved measurements of the same benchmark: the run folders of each
-docs/results/benchmarks/SOURCE/ (benchmarks that save run folders, e.g. family.py's, trained in parts:
+docs/results/benchmarks/SOURCE/ (measurements that save run folders, the family's, trained in parts:
 seeds 0-1 in one session, seed 2 in the next) copied into one new data folder whose table is rendered
 by the sources' renderer, so that a task's seeds stand in one row. Nothing is re-trained; meta.json
 names every source (its command, commit and training times).
 
-    python benchmarks/merge_saved.py family-stack-peg family-peg-s2 --save family-stack-peg-5-seeds
-    python benchmarks/merge_saved.py family-push-action-l2 family-push-fast-intel \
+    python studies/manipulation-family/merge_saved.py family-stack-peg family-peg-s2 --save family-stack-peg-5-seeds
+    python studies/manipulation-family/merge_saved.py family-push-action-l2 family-push-fast-intel \
         --table table_family_comparison --save family-push-penalty-vs-fast   # variants side by side
 """
 
@@ -14,13 +14,18 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 from pathlib import Path
 from typing import Any
 
-from learning_tables import RUN_FILES, saved_runs
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record: saved measurements
+
 from record import DATA_ROOT, META, Measurement
 
-#: Renderers of benchmarks/learning_tables.py that `--table` may give merged run folders.
+from tsrl.experiments.milestones import RUN_FILES, saved_runs
+
+#: Renderers of family_tables.py (beside this file) that `--table` may give merged run folders.
+TABLES_MODULE = "studies/manipulation-family/family_tables.py"
 MERGED_TABLES = ("table_family", "table_family_comparison")
 #: The meta.json keys of a source kept in the merged meta.json's "sources".
 SOURCE_KEYS = ("command", "commit", "started_utc", "ended_utc", "trained")
@@ -74,7 +79,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--table",
         choices=sorted(MERGED_TABLES),
-        help="render the merged runs with this table of benchmarks/learning_tables.py instead of the "
+        help="render the merged runs with this table of family_tables.py instead of the "
         "sources' own (e.g. table_family_comparison: variants of one task against its baseline)",
     )
     args = parser.parse_args(argv)
@@ -83,7 +88,7 @@ def main(argv: list[str] | None = None) -> None:
     metas, runs = plan(args.sources)
     table, doc = next((m["table"], m["doc"]) for m in metas.values())
     if args.table:
-        table = f"benchmarks/learning_tables.py:{args.table}"
+        table = f"{TABLES_MODULE}:{args.table}"
     with Measurement(args.save, __file__, table, doc) as out:
         assert out is not None
         copy_runs(runs, out)

@@ -9,8 +9,8 @@ thread, side by side (rounds interleaved), on the shapes of tsrl/UR5ePickPlace-v
 input: observation + achieved goal + desired goal; 4 actions), batch 256, [256, 256]; and, for scale,
 stable-baselines3's own DDPG `train` on the same task (the update every tsrl run makes today).
 
-    python benchmarks/seed_ensembles.py                  # K = 1, 2, 4; 200 updates per timing, 5 rounds
-    python benchmarks/seed_ensembles.py --ensembles 1 2 4 8 --save
+    python studies/manipulation-family/seed_ensembles.py                  # K = 1, 2, 4; 200 updates per timing, 5 rounds
+    python studies/manipulation-family/seed_ensembles.py --ensembles 1 2 4 8 --save
 
 Each printed speedup is per seed: (updates/s per seed, ensemble) / (updates/s, separate). Before the
 timings, the ensemble's member k is checked against a separate copy of member k after 20 updates on
@@ -23,12 +23,14 @@ import argparse
 import copy
 import os
 import statistics
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record: saved measurements
 
 import torch as th
 from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
@@ -278,7 +280,10 @@ def main() -> None:
     if min(args.ensembles) < 1 or args.updates < 1 or args.rounds < 1 or args.batch < 1:
         parser.error("--ensembles, --updates, --rounds and --batch must be >= 1")
     with Measurement(
-        args.save, __file__, "benchmarks/seed_ensembles.py:table", "studies/manipulation-family/README.md"
+        args.save,
+        __file__,
+        "studies/manipulation-family/seed_ensembles.py:table",
+        "studies/manipulation-family/README.md",
     ) as out:
         rows = measure(args.ensembles, args.updates, args.rounds, args.batch)
         if out is not None:

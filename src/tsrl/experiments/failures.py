@@ -1,7 +1,7 @@
-"""Why a trained object-moving policy fails (issue 24: "report the curve and what limits it"): its final
-policy's deterministic episodes, each failed one put in one class by what the object did.
+"""Failure classes of a trained object-moving policy (issue 24: "report the curve and what limits it"):
+its final policy's deterministic episodes, each failed one put in one class by what the object did.
 
-    python benchmarks/failure_modes.py RUN_DIR [RUN_DIR ...] [--episodes 100] [--save NAME]
+    python studies/manipulation-family/failure_modes.py RUN_DIR [RUN_DIR ...] [--episodes 100] [--save NAME]
 
 Per run: the newest usable checkpoint's policy on `--episodes` fresh evaluation episodes (the seeds
 `tsrl evaluate` uses, none seen in training's evaluations), the run's own task, observation and
@@ -33,29 +33,26 @@ table), how many there were, how many failed and how many were *reached, then lo
 
 from __future__ import annotations
 
-import argparse
-import os
+import csv
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from learning_tables import family_variant
-from record import DATA_CSV, Measurement, add_save_argument, read_rows, write_rows
 
-from tsrl.agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
-from tsrl.agents.factory import make_env
-from tsrl.envs.base import TaskEnv
-from tsrl.taskmaps import resolve_frame
+from ..agents.evaluation import fresh_eval_seeds, load_run_policy, policy_action
+from ..agents.factory import make_env
+from ..envs.base import TaskEnv
+from ..taskmaps import resolve_frame
 
 MOVED = 0.01  # m
 LIFTED = 0.01  # m: a goal this far above the object's start is a lifted one
 STALL_STEPS, STALL_MOVE = 10, 0.001  # steps, m
 AT_BOUND = 0.005  # of the action range, from either end
+#: The file of a saved measurement's rows (one per run and goal object).
+DATA_CSV = "data.csv"
 CLASSES = ("success", "not moved", "reached, then lost", "short of the goal", "moved, not towards the goal")
 
 
@@ -130,9 +127,12 @@ def touches(model: mujoco.MjModel, data: mujoco.MjData, body: int, root: int) ->
     return False
 
 
-def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
-    """One row per goal object: the run (with what sets a family run apart, benchmarks/family.py's
-    resets say, and the object's name where the goal has several), its env steps, per class the
+def failure_modes(
+    run_dir: Path, episodes: int, describe: Callable[[dict[str, Any]], list[str]] | None = None
+) -> list[dict[str, Any]]:
+    """One row per goal object: the run (with what `describe` says of its config.json's dict, such as
+    what sets a study's run apart that its name does not say, and the object's name where the goal
+    has several), its env steps, per class the
     number of episodes, how many failed episodes ended stalled, how many reached-then-lost ones ended
     with the object touching the robot and how many were held when last at the goal, how many
     episodes had a lifted goal and how many of those failed or were reached then lost, and the share
@@ -142,7 +142,7 @@ def failure_modes(run_dir: Path, episodes: int) -> list[dict[str, Any]]:
     base = env.unwrapped
     assert isinstance(base, TaskEnv)
     objects = goal_objects(base)
-    variant = family_variant(cfg.to_dict())  # the run name does not say the resets
+    variant = describe(cfg.to_dict()) if describe is not None else []
     tolerance = base.task.success.position
     counts = [dict.fromkeys(CLASSES, 0) for _ in objects]
     stalls = [0 for _ in objects]
@@ -294,28 +294,6 @@ def render(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def table(data_dir: Path) -> list[str]:
-    """The table from the data `--save` wrote to `data_dir`."""
-    return render(read_rows(data_dir / DATA_CSV))
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
-    parser.add_argument("--episodes", type=int, default=100)
-    add_save_argument(parser, "failure-modes")
-    args = parser.parse_args()
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1; got {args.episodes}")
-    with Measurement(
-        args.save, __file__, "benchmarks/failure_modes.py:table", "studies/manipulation-family/README.md"
-    ) as out:
-        rows = [row for run in args.runs for row in failure_modes(run, args.episodes)]
-        if out is not None:
-            write_rows(out / DATA_CSV, rows)
-    print("\n".join(render(rows)))
-
-
-if __name__ == "__main__":
-    main()
+    """The table from a saved measurement's rows (`data_dir`/DATA_CSV)."""
+    with open(data_dir / DATA_CSV, newline="") as f:
+        return render(list(csv.DictReader(f)))

@@ -1,45 +1,46 @@
 """Learning benchmark: DDPG + HER with the paper's settings; prints env steps and wall time to 50/90/95%
 evaluation success, and env steps per second including learning (evaluation time excluded).
 
-    python benchmarks/learning.py tsrl     # tsrl/UR5eReach-v0, fs1, taskspace: 3 seeds
-    python benchmarks/learning.py fetch    # Gymnasium-Robotics FetchReach-v4, same agent: 3 seeds
-    python benchmarks/learning.py her      # fs1 with feature-aware HER vs stable-baselines3's plain HER
-    python benchmarks/learning.py all      # the three above
-    python benchmarks/learning.py demos    # tsrl/UR5ePickPlace-v0 (fs1) with 100 scripted demonstrations
+    python studies/learner-benchmarks/learning.py tsrl     # tsrl/UR5eReach-v0, fs1, taskspace: 3 seeds
+    python studies/learner-benchmarks/learning.py fetch    # Gymnasium-Robotics FetchReach-v4, same agent: 3 seeds
+    python studies/learner-benchmarks/learning.py her      # fs1 with feature-aware HER vs stable-baselines3's plain HER
+    python studies/learner-benchmarks/learning.py all      # the three above
+    python studies/learner-benchmarks/learning.py demos    # tsrl/UR5ePickPlace-v0 (fs1) with 100 scripted demonstrations
                                            # vs without, same seeds: 5 seeds, 50,000 env steps, 100 eval episodes
-    python benchmarks/learning.py panda    # tsrl/PandaReach-v0 (fs1) beside tsrl/UR5eReach-v0 (fs1), same seeds:
+    python studies/learner-benchmarks/learning.py panda    # tsrl/PandaReach-v0 (fs1) beside tsrl/UR5eReach-v0 (fs1), same seeds:
                                            # every Panda seed at >= 95% within 2x the UR5e's env steps?
-    python benchmarks/learning.py speed    # learner speed: gradient steps/s of each learner option (plain SB3
+    python studies/learner-benchmarks/learning.py speed    # learner speed: gradient steps/s of each learner option (plain SB3
                                            # DDPG + HER, feature HER, demonstrations, LayerNorm, TQC, ...)
                                            # next to the matrix-multiply floor of the same batch and networks
-    python benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
+    python studies/learner-benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
                                            # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
-    python benchmarks/learning.py learner-ablation  # the learner suite, each --without OPTION and each
+    python studies/learner-benchmarks/learning.py learner-ablation  # the learner suite, each --without OPTION and each
                                            # --screen NAME, 5 seeds each (runs reused by name): one table
-    python benchmarks/learning.py learner-small  # the final `fast` preset (no resets) on the learner suite's
+    python studies/learner-benchmarks/learning.py learner-small  # the final `fast` preset (no resets) on the learner suite's
                                            # protocol beside it with smaller networks or batches (SMALL):
                                            # 5 seeds each; issue 27's 90 s target
-    python benchmarks/learning.py speed-small  # the speed suite's rows of the fast preset and its SMALL variants
-    python benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
+    python studies/learner-benchmarks/learning.py speed-small  # the speed suite's rows of the fast preset and its SMALL variants
+    python studies/learner-benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
                                            # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
                                            # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
-    python benchmarks/learning.py learner-obstacle  # the same two on tsrl/UR5eObstacleReach-v1 (fs1): 5
+    python studies/learner-benchmarks/learning.py learner-obstacle  # the same two on tsrl/UR5eObstacleReach-v1 (fs1): 5
                                            # seeds, 8,000 env steps, eval every 500 on 50 episodes; IQM of AUC
-    python benchmarks/learning.py learner-pose  # the same two on tsrl/UR5ePoseReach-v0 (its own fs2 and
+    python studies/learner-benchmarks/learning.py learner-pose  # the same two on tsrl/UR5ePoseReach-v0 (its own fs2 and
                                            # pose action): 5 seeds, 25,000 env steps, eval every 2,500 on 50
-    python benchmarks/learning.py family [OPTIONS]  # the manipulation family (benchmarks/family.py, its options)
-    python benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
+    python studies/learner-benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
 
-Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/learning): a finished
-one is reused, an interrupted one resumed, so the script can be stopped and started again. Delete the
-folder to measure afresh. Timings assume no more parallel --jobs than free cores.
+Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/learning), run by
+`tsrl experiment`'s runner (tsrl.experiments.pool.run_configs): a finished one is reused, an
+interrupted one resumed, so the script can be stopped and started again. Delete the folder to measure
+afresh. Timings assume no more parallel --jobs than free cores.
 
 FetchReach needs Gymnasium-Robotics 1.4.2, which tsrl does not depend on: `pip install -e ".[bench]"`.
-It does not run on mujoco 4 unpatched; `fetch_compat.register_fetch_envs` (beside this file) applies
-the small patch, in the benchmarks only.
+It does not run on mujoco 4 unpatched; `benchmarks/fetch_compat.register_fetch_envs` applies the small
+patch, in the benchmarks only; the fetch suite runs in this process (the runner's workers would not
+have the patch).
 """
 
 from __future__ import annotations
@@ -48,22 +49,21 @@ import argparse
 import math
 import os
 import sys
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record, fetch_compat
 
 from fetch_compat import register_fetch_envs
-from learning_tables import ABLATION_BUDGET, PANDA, ablation_table, save_runs, speed_render, suite_lines
+from learner_tables import ABLATION_BUDGET, PANDA, ablation_table, speed_render, suite_lines
 from record import DATA_CSV, Measurement, add_save_argument, write_rows
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig
 from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
-from tsrl.agents.run_folder import latest_checkpoint, read_state
+from tsrl.experiments.milestones import save_runs
 
 PICK = "tsrl/UR5ePickPlace-v0"
 OBSTACLE = "tsrl/UR5eObstacleReach-v1"
@@ -121,7 +121,7 @@ FIVE_SEED_SUITES = (
     "learner-obstacle",
     "learner-pose",
 )
-#: Per suite, the kind of its table (benchmarks/learning_tables.py's suite_lines; default "wall").
+#: Per suite, the kind of its table (learner_tables.py's suite_lines; default "wall").
 SUITE_TABLES = {
     "demos": "train",
     "learner": "train",
@@ -134,7 +134,7 @@ SUITE_TABLES = {
     "own-robot": "own_robot",
 }
 #: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
-OWN_ROBOT = Path(__file__).resolve().parents[1] / "examples" / "robots" / "fetch_reach.toml"
+OWN_ROBOT = Path(__file__).resolve().parents[2] / "examples" / "robots" / "fetch_reach.toml"
 
 
 #: The learner suite's combination: the fast preset as first screened, with demonstration resets (the
@@ -235,43 +235,41 @@ def configs(
     raise ValueError(suite)
 
 
-def run_one(args: tuple[TrainConfig, Path]) -> Path:
-    """Trains (or resumes, or reuses) one run in <out>/<fetch|reach|...>/<run name>.
+def run_parent(cfg: TrainConfig, out_dir: Path) -> Path:
+    """The folder of a run: <out>/<fetch|reach|pick-place|...>/ (its run name below it).
 
     The `her` suite's feature-aware runs are the `tsrl` suite's runs (same config, same folder); the
     learner suite's ablations (--without OPTION) get <out>/without-<option>/pick-place (same run names).
     """
-    cfg, out_dir = args
-    if cfg.env_id.startswith("Fetch"):
-        register_fetch_envs()
-    parent = out_dir / {
+    return out_dir / {
         "FetchReach-v4": "fetch",
         PICK: "pick-place",
         PANDA: "panda-reach",
         POSE: "pose-reach",
     }.get(cfg.env_id, "own-robot" if cfg.is_task_file else "reach")
-    return train_or_resume(cfg, parent)
 
 
-def in_parallel(fn: Callable[[Any], Path], work: list[Any], jobs: int) -> list[Path]:
-    """`fn` over `work` in order: in `jobs` processes, or in this one for jobs 1."""
-    if jobs <= 1:
-        return [fn(w) for w in work]
-    with ProcessPoolExecutor(jobs) as pool:
-        return list(pool.map(fn, work))
+def run_all(work: list[tuple[TrainConfig, Path]], jobs: int) -> list[Path]:
+    """The run folders of `work` ((config, out dir) pairs), in order, each brought to its budget by
+    `tsrl experiment`'s runner, a folder's runs `jobs` at a time; Fetch runs in this process, which
+    registers its patched environments. Raises SystemExit naming a run that failed or was stopped."""
+    from tsrl.experiments.pool import run_configs
+    from tsrl.experiments.runner import RunOutcome, run_one
 
-
-def train_or_resume(cfg: TrainConfig, parent: Path) -> Path:
-    """The run of `cfg` in <parent>/<run name>: reused when finished, resumed when interrupted, else trained."""
-    from tsrl.agents.training import resume, train
-
-    run_dir = parent / cfg.run_name
-    checkpoint = latest_checkpoint(run_dir)
-    if checkpoint is not None and read_state(checkpoint).env_steps >= cfg.total_timesteps:
-        return run_dir
-    if (run_dir / "config.json").is_file():
-        return resume(run_dir, total_timesteps=cfg.total_timesteps, progress_bar=False)
-    return train(cfg, parent, progress_bar=False)
+    folders: dict[Path, list[TrainConfig]] = {}
+    for cfg, out_dir in work:
+        folders.setdefault(run_parent(cfg, out_dir), []).append(cfg)
+    outcomes: list[RunOutcome] = []
+    for parent, cfgs in folders.items():
+        if any(cfg.env_id.startswith("Fetch") for cfg in cfgs):
+            register_fetch_envs()
+            outcomes += [run_one(cfg, parent) for cfg in cfgs]
+        else:
+            outcomes += run_configs(cfgs, parent, jobs)
+    bad = [o for o in outcomes if o.status in ("failed", "interrupted")]
+    if bad:
+        raise SystemExit(f"{bad[0].run_name}: {bad[0].status}: {bad[0].error}")
+    return [run_parent(cfg, out_dir) / cfg.run_name for cfg, out_dir in work]
 
 
 def record_benchmark_demos(out_dir: Path) -> Path:
@@ -446,11 +444,6 @@ def matmul_floor(model: Any, batch_size: int, repeats: int) -> float:
 
 
 def main() -> None:
-    if sys.argv[1:2] == ["family"]:  # the manipulation family's benchmark lives in its own script
-        from family import main as family_main
-
-        family_main(sys.argv[2:])
-        return
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -494,7 +487,7 @@ def main() -> None:
         with Measurement(
             args.save,
             __file__,
-            "benchmarks/learning_tables.py:speed_table",
+            "studies/learner-benchmarks/learner_tables.py:speed_table",
             "studies/learner-benchmarks/README.md",
         ) as out:
             rows = speed(
@@ -549,8 +542,9 @@ def main() -> None:
     )
     kind = SUITE_TABLES.get(args.suite, "wall")
     doc = "docs/robots.md" if args.suite == "own-robot" else "studies/learner-benchmarks/README.md"
-    with Measurement(args.save, __file__, f"benchmarks/learning_tables.py:table_{kind}", doc) as out:
-        done = in_parallel(run_one, work, args.jobs)
+    table = f"studies/learner-benchmarks/learner_tables.py:table_{kind}"
+    with Measurement(args.save, __file__, table, doc) as out:
+        done = run_all(work, args.jobs)
         if out is not None:
             save_runs(done, out, ablation_variant if kind in ("ablation", "small") else None)
     if kind in ("ablation", "small"):
