@@ -7,7 +7,7 @@ data/runs.csv; `table` prints the study's table from that file.
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
 seed 0), 8,000 gradient steps; ref100 / ref10: `--learner fast` with the same demonstrations as it is
-from this commit on (the clone kept as a reference the critic chooses against, pre-registration 3);
+from commit ab08374 on (the clone kept as a reference the critic chooses against, pre-registration 3);
 fast100 / fast10: the `--learner fast` of commits a6205d2-6840ec2 (pre-registration 2), whose rows are
 kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
 is not a screen: one seed, to find a bug or a cause before the pre-registered runs).
