@@ -35,6 +35,6 @@ reproduce-check: install  ## re-derives from the committed data (studies/QUESTIO
 	$(BIN)/python scripts/benchmark_tables.py
 	$(BIN)/python -m pytest -q -p no:cacheprovider tests/experiments/test_across.py
 
-bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning: benchmarks/learning.py
+bench: install  ## speed benchmarks (task maps, IK, env step): each prints a table; learning studies: tsrl experiment, studies/*/
 	$(BIN)/python -m pip install -q -e ".[bench]"
 	cd benchmarks && ../$(BIN)/python taskmaps.py && ../$(BIN)/python ik.py && ../$(BIN)/python env_step.py

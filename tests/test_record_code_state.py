@@ -10,10 +10,11 @@ record = load_benchmark("record")
 
 
 def test_the_table_renderers_module_counts_as_the_measurements_code() -> None:
-    assert record.code_files("benchmarks/merge_saved.py", "benchmarks/learning_tables.py:table_family") == (
-        "benchmarks/merge_saved.py",
-        "benchmarks/learning_tables.py",
+    merge, tables = (
+        "studies/manipulation-family/merge_saved.py",
+        "studies/manipulation-family/family_tables.py",
     )
+    assert record.code_files(merge, f"{tables}:table_family") == (merge, tables)
     assert record.code_files("benchmarks/solvers.py", "table") == ("benchmarks/solvers.py",)
 
 

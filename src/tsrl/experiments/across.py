@@ -1,10 +1,10 @@
 """Comparisons across studies: every pre-registered comparison of every committed study folder
-(docs/results/<study>/ with experiment.json and results.csv), recomputed from the committed data, with
-Holm's correction over all of them beside each study's own, and the arms whose runs two comparisons
-share (a shared control arm makes two comparisons one design, not two replications).
+(studies/<question>/<screen>/ with experiment.json and results.csv), recomputed from the committed
+data, with Holm's correction over all of them beside each study's own, and the arms whose runs two
+comparisons share (a shared control arm makes two comparisons one design, not two replications).
 
-scripts/readme_comparisons.py prints the table and writes it into README.md; tests check it against
-hand-computed values.
+scripts/readme_comparisons.py prints the table and writes it to docs/results/comparisons-all.csv and
+.md; tests check it against hand-computed values.
 """
 
 from __future__ import annotations

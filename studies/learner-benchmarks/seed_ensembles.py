@@ -9,8 +9,8 @@ thread, side by side (rounds interleaved), on the shapes of tsrl/UR5ePickPlace-v
 input: observation + achieved goal + desired goal; 4 actions), batch 256, [256, 256]; and, for scale,
 stable-baselines3's own DDPG `train` on the same task (the update every tsrl run makes today).
 
-    python studies/manipulation-family/seed_ensembles.py                  # K = 1, 2, 4; 200 updates per timing, 5 rounds
-    python studies/manipulation-family/seed_ensembles.py --ensembles 1 2 4 8 --save
+    python studies/learner-benchmarks/seed_ensembles.py                  # K = 1, 2, 4; 200 updates per timing, 5 rounds
+    python studies/learner-benchmarks/seed_ensembles.py --ensembles 1 2 4 8 --save
 
 Each printed speedup is per seed: (updates/s per seed, ensemble) / (updates/s, separate). Before the
 timings, the ensemble's member k is checked against a separate copy of member k after 20 updates on
@@ -282,8 +282,8 @@ def main() -> None:
     with Measurement(
         args.save,
         __file__,
-        "studies/manipulation-family/seed_ensembles.py:table",
-        "studies/manipulation-family/README.md",
+        "studies/learner-benchmarks/seed_ensembles.py:table",
+        "studies/learner-benchmarks/README.md",
     ) as out:
         rows = measure(args.ensembles, args.updates, args.rounds, args.batch)
         if out is not None:
