@@ -102,3 +102,30 @@ def test_a_run_of_another_task_has_no_family_target() -> None:
     assert tables.family_target("/elsewhere/my_task.toml") is None
     with pytest.raises(SystemExit, match="no task file 'elsewhere.toml' in .*task_files; accepted"):
         tables.compared_task("/some/machine/elsewhere.toml")
+
+
+def test_a_family_experiments_runs_saved_render_the_family_table(tmp_path: Path) -> None:
+    """`tsrl experiment`'s runner on the family file cut to seconds, its folder saved as
+    save_experiment.py saves it: the family table judges it against the push's target."""
+    import dataclasses
+    import io
+
+    from tsrl.experiments.config import DemoRecipe, TaskBudget
+    from tsrl.experiments.pool import run_experiment
+
+    save = load_study("manipulation-family", "save_experiment")
+    push = "tsrl/PandaPush-v0"
+    exp = dataclasses.replace(
+        load_experiment(ROOT / "experiments" / "manipulation-family.toml"),
+        env=(push,),
+        seeds=(0, 1),
+        budgets=(TaskBudget(push, total_timesteps=100, eval_freq=50),),
+        eval_episodes=2,
+        demos=DemoRecipe(episodes=2),
+    )
+    run_experiment(exp, tmp_path / "results", workers=2, stream=io.StringIO())
+    out = tmp_path / "data"
+    assert save.copy_experiment(tmp_path / "results" / exp.name, out) == 2
+    assert (out / exp.name / "experiment.json").is_file()
+    (row,) = tables.table_family(out)[2:]
+    assert row.startswith("| `tsrl/PandaPush-v0` (budget 100) | 30,000 | 0, 1 |") and row.endswith("| no |")
