@@ -5,6 +5,7 @@ the normaliser keeps the demonstrations' statistics."""
 
 from __future__ import annotations
 
+from dataclasses import replace as dataclasses_replace
 from pathlib import Path
 
 import numpy as np
@@ -160,3 +161,40 @@ def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
     from_actor = np.all(np.abs(onnx - actor) < TOLERANCE, axis=1)
     assert np.all(from_reference | from_actor)
     assert from_reference.any() and from_actor.any()  # both were chosen: the export is not one of them
+
+
+def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_run_is_refused(
+    reach_demos, tmp_path, monkeypatch
+):
+    import shutil
+
+    from tsrl.agents import factory as factory_module
+    from tsrl.agents import resume, train
+    from tsrl.agents.checkpoint import load_policy, usable_checkpoint
+    from tsrl.agents.learners import LayerNormTD3Policy
+    from tsrl.agents.run_folder import checkpoint_dirs
+    from tsrl.exceptions import InvalidConfig
+
+    cfg = dataclasses_replace(
+        fast(reach_demos, warmup=0), total_timesteps=400, checkpoint_freq=200, eval_freq=200
+    )
+    run_dir = train(cfg, tmp_path / "a", progress_bar=False)
+    copies = [tmp_path / name / run_dir.name for name in ("b", "c")]
+    for copy in copies:  # killed after the first checkpoint, resumed from it
+        shutil.copytree(run_dir, copy)
+        shutil.rmtree(checkpoint_dirs(copy)[-1])
+        resume(copy, progress_bar=False)
+    policies = [load_policy(usable_checkpoint(d, True, False), TD3)[0].policy for d in (run_dir, *copies)]  # type: ignore[arg-type]
+    # Deterministic given the checkpoint (as every run: the env restarts with a new episode on resume).
+    for module in ("actor", "reference", "critic"):
+        pairs = zip(*(getattr(p, module).parameters() for p in policies[1:]), strict=True)
+        assert all(th.equal(a, b) for a, b in pairs), module
+    # The reference came back with the checkpoint and is still the clone of the uninterrupted run.
+    pairs = zip(*(p.reference.parameters() for p in policies[:2]), strict=True)
+    assert all(th.equal(a, b) for a, b in pairs)
+    # A fast run whose checkpoints hold no reference (tsrl 0.2.0's) is refused, not resumed as a hybrid.
+    monkeypatch.setattr(factory_module, "ReferenceTD3Policy", LayerNormTD3Policy)
+    old = train(cfg, tmp_path / "old", progress_bar=False)
+    monkeypatch.undo()
+    with pytest.raises(InvalidConfig, match="tsrl 0.2.0"):
+        resume(old, total_timesteps=600, progress_bar=False)

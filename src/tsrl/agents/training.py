@@ -40,6 +40,7 @@ from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
+from .reference import ReferenceTD3Policy
 from .run_folder import (
     CONFIG_FILE,
     LEARNING_CURVE,
@@ -162,6 +163,11 @@ class _Session:
             state = checkpoint.state
         else:
             model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)
+            if cfg.agent.has_reference and not isinstance(model.policy, ReferenceTD3Policy):
+                raise InvalidConfig(
+                    f"{self.run_dir}: a --learner fast run of tsrl 0.2.0 (its policy keeps no reference "
+                    "clone); accepted: resume it with tsrl 0.2.0"
+                )
             state = checkpoint.state
             episode_steps = int(self.venv.get_attr("spec")[0].max_episode_steps)
             buffer = model.replay_buffer
