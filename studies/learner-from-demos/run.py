@@ -198,26 +198,34 @@ TARGETS = {
 }
 
 
+#: The learner arms and the pre-registration whose rules they are judged by (README).
+LEARNER_ARMS = {"fast": "2", "ref": "3"}
+
+
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registration 2) for each task with a learner arm."""
+    """The pre-registered rules (README, pre-registrations 2 and 3) for each task and learner arm."""
     rows = read_rows()
     print(
-        "| task | demos | BC floor | learner seeds | lowest eval after 2,500 | floor held | "
-        "seeds at 95 % within target | target |"
+        "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "
+        "floor held | seeds at 95 % within target | target |"
     )
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for (task, n), target in TARGETS.items():
-        bc = [float(r["final"]) for r in rows if r["task"] == task and r["arm"] == f"bc{n}"]
-        fast = [r for r in rows if r["task"] == task and r["arm"] == f"fast{n}"]
-        if not bc or not fast:
-            continue
+        for arm, pre in LEARNER_ARMS.items():
+            _verdict(rows, task, n, target, f"{arm}{n}", pre)
+
+
+def _verdict(rows: list[dict[str, str]], task: str, n: int, target: int, arm: str, pre: str) -> None:
+    bc = [float(r["final"]) for r in rows if r["task"] == task and r["arm"] == f"bc{n}"]
+    fast = [r for r in rows if r["task"] == task and r["arm"] == arm]
+    if bc and fast:
         floor = float(np.mean(bc))
         lowest = min(float(r["min_after"]) for r in fast)
         within = sum(r["to95"] not in ("", "nan") and float(r["to95"]) <= target for r in fast)
         # every seed must get there: one finished seed that does not decides "missed"
         met = "missed" if within < len(fast) else "met" if len(fast) == 5 else "not decided"
         print(
-            f"| {task} | {n} | {floor:.2f} | {len(fast)} | {lowest:.2f} | "
+            f"| {task} | {n} | {arm} ({pre}) | {floor:.2f} | {len(fast)} | {lowest:.2f} | "
             f"{'yes' if lowest >= floor - 0.05 else 'no'} | {within} of {len(fast)} within {target:,} | {met} |"
         )
 
