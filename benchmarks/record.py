@@ -1,6 +1,7 @@
 """A benchmark table's committed data (issue 28): `--save [NAME]` on a benchmark writes, under
-docs/results/benchmarks/NAME/, what its table is made of (data.csv, or run folders) and meta.json (the
-command, the commit, the machine, the table's renderer and the doc that shows it);
+docs/results/benchmarks/NAME/ (a study's: studies/<question>/data/NAME/), what its table is made of
+(data.csv, or run folders) and meta.json (the command, the commit, the machine, the table's renderer
+and the doc that shows it);
 scripts/benchmark_tables.py re-derives every such table from them and checks (or writes) the doc's
 copy between its markers.
 
@@ -31,22 +32,31 @@ CODE_PATHS = ("src", "pyproject.toml", "benchmarks/record.py", "benchmarks/fetch
 
 
 def add_save_argument(parser: argparse.ArgumentParser, name: str) -> None:
-    """`--save [NAME]`: commit-ready data of this run's table under docs/results/benchmarks/NAME/."""
+    """`--save [NAME]`: commit-ready data of this run's table (docs/results/benchmarks/NAME/, or
+    studies/<question>/data/NAME/ for a study's)."""
     parser.add_argument(
         "--save",
         nargs="?",
         const=name,
         default=None,
         metavar="NAME",
-        help=f"write the table's data to docs/results/benchmarks/NAME/ (default NAME: {name})",
+        help=f"write the table's data to docs/results/benchmarks/NAME/ or, a study's, to "
+        f"studies/<question>/data/NAME/ (default NAME: {name})",
     )
 
 
-def data_dir(name: str) -> Path:
-    """docs/results/benchmarks/<name>/ (created)."""
+def data_root(doc: str) -> Path:
+    """Where the data of a table shown in `doc` (a repository path) live: beside a study's README
+    (studies/<question>/data/), else docs/results/benchmarks/."""
+    parts = Path(doc).parts
+    return ROOT / "studies" / parts[1] / "data" if parts[0] == "studies" and len(parts) == 3 else DATA_ROOT
+
+
+def data_dir(name: str, root: Path = DATA_ROOT) -> Path:
+    """<root>/<name>/ (created)."""
     if not name or "/" in name or name.startswith("."):
         raise ValueError(f"benchmark data name {name!r}: a plain folder name")
-    path = DATA_ROOT / name
+    path = root / name
     path.mkdir(parents=True, exist_ok=True)
     return path
 
@@ -159,7 +169,7 @@ class Measurement:
         self.load = [round(x, 2) for x in os.getloadavg()]
         self.code = code_state(code_files(self.script, self.table))
         if self.name is not None:
-            self.out = data_dir(self.name)
+            self.out = data_dir(self.name, data_root(self.doc))
         return self.out
 
     def __exit__(self, exc_type: object, *_: object) -> None:

@@ -86,9 +86,9 @@ def test_a_gripper_half_step_halves_the_tcp_step_and_its_solver_still_succeeds(
 
 
 def test_a_run_past_its_target_is_judged_against_the_target_and_names_its_budget() -> None:
-    """The gripper's 150,000-step runs (docs/results/benchmarks/family-gripper-150k): seed 0 reaches 95 %
+    """The gripper's 150,000-step runs (studies/manipulation-family/data/family-gripper-150k): seed 0 reaches 95 %
     at 132,500, past the task's 60,000, so the table says the target and "no", not the runs' budget."""
-    saved = ROOT / "docs" / "results" / "benchmarks" / "family-gripper-150k"
+    saved = STUDY / "data" / "family-gripper-150k"
     (row,) = tables.table_family(saved)[2:]
     assert row.startswith("| `tsrl/PandaPickPlaceGripper-v0` (learner fast, budget 150,000) | 60,000 |")
     assert "| 132,500, never |" in row and row.endswith("| no |")

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from benchmark_modules import load_study
 
-DATA = Path(__file__).resolve().parents[1] / "docs" / "results" / "benchmarks"
+DATA = Path(__file__).resolve().parents[1] / "studies" / "manipulation-family" / "data"
 
 from tsrl.experiments.milestones import RUN_FILES, saved_runs
 

@@ -1,5 +1,5 @@
 """One table from several saved measurements of the same benchmark: the run folders of each
-docs/results/benchmarks/SOURCE/ (measurements that save run folders, the family's, trained in parts:
+data/SOURCE/ beside this file (measurements that save run folders, the family's, trained in parts:
 seeds 0-1 in one session, seed 2 in the next) copied into one new data folder whose table is rendered
 by the sources' renderer, so that a task's seeds stand in one row. Nothing is re-trained; meta.json
 names every source (its command, commit and training times).
@@ -20,10 +20,13 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record: saved measurements
 
-from record import DATA_ROOT, META, Measurement
+from record import META, Measurement, data_root
 
 from tsrl.experiments.milestones import RUN_FILES, saved_runs
 
+#: The family's README, and where its tables' data are (data/ beside it).
+DOC = "studies/manipulation-family/README.md"
+DATA_ROOT = data_root(DOC)
 #: Renderers of family_tables.py (beside this file) that `--table` may give merged run folders.
 TABLES_MODULE = "studies/manipulation-family/family_tables.py"
 MERGED_TABLES = ("table_family", "table_family_comparison")
@@ -73,7 +76,7 @@ def main(argv: list[str] | None = None) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument(
-        "sources", nargs="+", help="names of saved measurements (docs/results/benchmarks/NAME/)"
+        "sources", nargs="+", help="names of saved measurements (data/NAME/ beside this file)"
     )
     parser.add_argument("--save", required=True, metavar="NAME", help="the merged data's new folder name")
     parser.add_argument(
@@ -86,10 +89,10 @@ def main(argv: list[str] | None = None) -> None:
     if (DATA_ROOT / args.save).exists():
         parser.error(f"--save {args.save}: {DATA_ROOT / args.save} exists; accepted: a new name")
     metas, runs = plan(args.sources)
-    table, doc = next((m["table"], m["doc"]) for m in metas.values())
+    table = next(m["table"] for m in metas.values())
     if args.table:
         table = f"{TABLES_MODULE}:{args.table}"
-    with Measurement(args.save, __file__, table, doc) as out:
+    with Measurement(args.save, __file__, table, DOC) as out:
         assert out is not None
         copy_runs(runs, out)
     meta_path = out / META

@@ -1,6 +1,6 @@
 """Runs of the manipulation family trained by `tsrl experiment` (experiments/manipulation-family.toml
 or a variant of it) saved as a measurement for a committed table: each run folder's RUN_FILES and the
-experiment's experiment.json copied to docs/results/benchmarks/NAME/<experiment>/, and meta.json
+experiment's experiment.json copied to data/NAME/<experiment>/ beside this file, and meta.json
 naming the family's table (family_tables.py beside this file). Nothing is trained here; meta.json's
 commit is the one the runs are saved at, so save at the commit they ran at.
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record: saved measurements
 
-from record import DATA_ROOT, Measurement
+from record import Measurement, data_root
 
 from tsrl.experiments.config import EXPERIMENT_FILE
 from tsrl.experiments.milestones import save_runs
@@ -26,6 +26,7 @@ from tsrl.experiments.results import find_runs
 #: The family's renderers (family_tables.py) that `--table` may name.
 TABLES = ("table_family", "table_family_comparison")
 TABLES_MODULE = "studies/manipulation-family/family_tables.py"
+DOC = "studies/manipulation-family/README.md"
 
 
 def copy_experiment(results_dir: Path, out: Path) -> int:
@@ -53,13 +54,13 @@ def main(argv: list[str] | None = None) -> None:
         "of one task against its baseline)",
     )
     args = parser.parse_args(argv)
-    if (DATA_ROOT / args.save).exists():
-        parser.error(f"--save {args.save}: {DATA_ROOT / args.save} exists; accepted: a new name")
+    if (data_root(DOC) / args.save).exists():
+        parser.error(f"--save {args.save}: {data_root(DOC) / args.save} exists; accepted: a new name")
     names = [results.name for results in args.results]
     if len(set(names)) < len(names):
         parser.error(f"experiment folders of one name: {names}; accepted: distinct experiments")
     table = f"{TABLES_MODULE}:{args.table}"
-    with Measurement(args.save, __file__, table, "studies/manipulation-family/README.md") as out:
+    with Measurement(args.save, __file__, table, DOC) as out:
         assert out is not None
         count = sum(copy_experiment(results, out) for results in args.results)
     print(f"{count} runs saved")
