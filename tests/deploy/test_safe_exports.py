@@ -1,5 +1,6 @@
-"""Exports that cannot hurt: `--out` never replaces what an export did not write; an altered contract,
-unusable limits or normaliser statistics, a bad `--goal` or `--log` are one line (exit 2) before
+"""Exports that cannot hurt: `--out` never replaces what an export did not write; a normaliser changed
+since its checkpoint was written (its sha256) is not exported; an altered contract, unusable limits or
+normaliser statistics, a bad `--goal` or `--log` are one line (exit 2) before
 anything moves; a log cut anywhere replays its complete records and says that it ends early."""
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from training_helpers import tiny
 
@@ -120,10 +122,43 @@ def test_an_altered_contract_and_unusable_limits_are_refused_in_one_line(run_and
     assert not (tmp_path / "x.jsonl").exists()
 
 
+def test_a_normaliser_changed_after_its_checkpoint_was_written_is_refused_at_export(
+    run_and_export, tmp_path, capsys
+):
+    run_dir, _ = run_and_export
+    copy = tmp_path / "runs" / run_dir.name
+    shutil.copytree(run_dir, copy)
+    pkls = sorted(copy.glob("checkpoints/*/vecnormalize.pkl"))
+    assert len(pkls) == 2 and all((p.parent / "sha256.json").is_file() for p in pkls)
+
+    def flip(pkl: Path) -> None:  # the lowest bit of the first mean: finite, plausible, unpickles
+        data = pkl.read_bytes()
+        mean = pickle.loads(data).obs_rms["observation"].mean
+        flipped = mean.copy()
+        flipped.view(np.uint64)[0] ^= 1
+        assert data.count(mean.tobytes()) == 1 and np.isfinite(flipped).all()
+        pkl.write_bytes(data.replace(mean.tobytes(), flipped.tobytes()))
+
+    flip(pkls[1])  # the newest: skipped with a warning naming it, the older checkpoint exported
+    assert main(["export", str(copy), "--out", str(tmp_path / "older")]) == 0
+    warning = capsys.readouterr().err.strip()
+    assert (
+        "\n" not in warning and f"{pkls[1]}: sha256 " in warning and f"using {pkls[0].parent.name}" in warning
+    )
+    assert json.loads((tmp_path / "older" / CONTRACT).read_text())["run"]["checkpoint"] == pkls[0].parent.name
+    flip(pkls[0])  # every checkpoint's: refused in one line, nothing written
+    assert main(["export", str(copy), "--out", str(tmp_path / "export")]) == 2
+    err = one_error_line(capsys)
+    assert "no usable checkpoint" in err and f"{pkls[0]}: sha256 " in err and "recorded in sha256.json" in err
+    assert not (tmp_path / "export").exists()
+
+
 def test_a_damaged_normaliser_is_refused_at_export(run_and_export, tmp_path, capsys):
     run_dir, _ = run_and_export
     copy = tmp_path / "runs" / run_dir.name
     shutil.copytree(run_dir, copy)
+    for record in copy.glob("checkpoints/*/sha256.json"):
+        record.unlink()  # checkpoints written before the normaliser's sha256 was recorded: its statistics
     for pkl in copy.glob("checkpoints/*/vecnormalize.pkl"):
         data = pkl.read_bytes()
         mean = pickle.loads(data).obs_rms["observation"].mean

@@ -3,8 +3,8 @@
 A checkpoint is a folder `checkpoints/step_<env steps>/` (tsrl.agents.run_folder), written whole into a
 temporary folder and renamed into place (atomic), so a run killed at any moment (SIGKILL included)
 leaves only complete checkpoints. The last two complete ones are kept. Before a checkpoint is used it
-is verified: the model archive opens and its counters agree with state.json, the pickles load and hold
-what they should. A damaged checkpoint is skipped with a one-line warning naming the damaged file, and
+is verified: the model archive opens and its counters agree with state.json, the normaliser's sha256
+is the one recorded when it was written (sha256.json), the pickles load and hold what they should. A damaged checkpoint is skipped with a one-line warning naming the damaged file, and
 the previous one is used; if none is usable, NoUsableCheckpoint names every damaged file. Checkpoints
 are only taken between updates, at an episode boundary, so a resumed run starts a fresh episode with
 nothing half-stored.
@@ -12,6 +12,7 @@ nothing half-stored.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import pickle
 import random
@@ -37,6 +38,7 @@ from .run_folder import (
     NORMALIZER,
     REPLAY_BUFFER,
     RNG,
+    SHA256S,
     STATE,
     DamagedCheckpoint,
     NoUsableCheckpoint,
@@ -80,6 +82,7 @@ def save_checkpoint(
         if normalizer is not None:
             with open(tmp / NORMALIZER, "wb") as f:
                 pickle.dump(normalizer, f, protocol=pickle.HIGHEST_PROTOCOL)
+            (tmp / SHA256S).write_text(json.dumps({NORMALIZER: _sha256(tmp / NORMALIZER)}, indent=2) + "\n")
         with open(tmp / RNG, "wb") as f:
             pickle.dump(_rng_state(model), f, protocol=pickle.HIGHEST_PROTOCOL)
         (tmp / STATE).write_text(json.dumps(state.__dict__, indent=2) + "\n")  # last: marks it complete
@@ -95,12 +98,15 @@ def verify_checkpoint(path: Path, normalized: bool, for_training: bool) -> Check
     naming the first bad file.
 
     The model archive must open (every member's CRC) and its env steps and episodes agree with
-    state.json; the normaliser (when `normalized`) must unpickle to a VecNormalize. With
+    state.json; the normaliser (when `normalized`) must have the sha256 recorded with it (sha256.json;
+    a checkpoint written before tsrl recorded it has none) and unpickle to a VecNormalize. With
     `for_training`, the replay buffer must unpickle to a buffer holding state.json's env steps, and the
     RNG states to the four generators a resumed run restores.
     """
     state = read_state(path)
     _verify_model(path / MODEL, state)
+    if normalized:
+        _verify_sha256(path, NORMALIZER)
     normalizer = _load_pickle(path / NORMALIZER, VecNormalize) if normalized else None
     if not for_training:
         return Checkpoint(path, state, normalizer)
@@ -233,6 +239,34 @@ def _verify_model(path: Path, state: RunState) -> None:
         raise DamagedCheckpoint(
             path,
             f"env steps and episodes {counters} disagree with state.json's ({state.env_steps}, {state.episodes})",
+        )
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _verify_sha256(checkpoint: Path, name: str) -> None:
+    """Raises DamagedCheckpoint unless the checkpoint's file `name` has the sha256 its sha256.json
+    records (nothing to check where the checkpoint has no sha256.json or it does not list the file)."""
+    record = checkpoint / SHA256S
+    if not record.is_file():
+        return
+    try:
+        hashes = json.loads(record.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise DamagedCheckpoint(record, f"unreadable ({type(err).__name__}: {err})") from None
+    expected = hashes.get(name) if isinstance(hashes, dict) else None
+    if expected is None:
+        return
+    try:
+        actual = _sha256(checkpoint / name)
+    except OSError as err:
+        raise DamagedCheckpoint(checkpoint / name, f"unreadable ({err.strerror})") from None
+    if actual != expected:
+        raise DamagedCheckpoint(
+            checkpoint / name,
+            f"sha256 {actual} differs from {expected}, recorded in {SHA256S} when it was written (changed since)",
         )
 
 

@@ -11,7 +11,8 @@
                        for tasks without penalties and in runs started before it was recorded)
     tb/                TensorBoard logs (SB3's train/ and rollout/ values, eval/)
     checkpoints/       the last two complete checkpoints, step_<env steps>/ each: model.zip,
-                       replay_buffer.pkl, vecnormalize.pkl, rng.pkl, state.json (written last)
+                       replay_buffer.pkl, vecnormalize.pkl, sha256.json (the normaliser's sha256),
+                       rng.pkl, state.json (written last)
     learning_curve.png written when the run completes
     train.lock         while a process trains the run: that process's id
 ```
@@ -48,6 +49,9 @@ LOCK = "train.lock"
 MODEL = "model.zip"
 REPLAY_BUFFER = "replay_buffer.pkl"
 NORMALIZER = "vecnormalize.pkl"
+#: {file name: sha256} of a checkpoint's files that are checked by hash (the normaliser); absent from
+#: checkpoints written before tsrl recorded it.
+SHA256S = "sha256.json"
 RNG = "rng.pkl"
 STATE = "state.json"
 #: Complete checkpoints kept: the newest, and one to fall back to if the newest is damaged.
