@@ -14,7 +14,13 @@ import pytest
 from tsrl.agents.config import POLICY_INPUTS, AgentConfig, HerConfig, TrainConfig
 from tsrl.exceptions import InvalidConfig
 from tsrl.experiments.aggregate import compare, markdown_summary, sort_key, summarize
-from tsrl.experiments.config import Comparison, ExperimentConfig, load_experiment, resolve_experiment
+from tsrl.experiments.config import (
+    Comparison,
+    ExperimentConfig,
+    config_labels,
+    load_experiment,
+    resolve_experiment,
+)
 from tsrl.experiments.curves import Curve, curves
 from tsrl.experiments.results import variants
 
@@ -154,6 +160,14 @@ def test_budgets_give_their_env_its_own_budget_and_evaluations(tmp_path):
         for seed in (0, 1)
     }
     assert exp.arms() == ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0", "reach"]  # a budget is no variant
+
+
+def test_labels_leave_out_an_obs_or_action_that_goes_with_its_env():
+    own = [("A", "fs1", "task", "ddpg", ""), ("B", "fs2", "task", "ddpg", "")]  # each task's own obs
+    assert config_labels(own) == ["A", "B"]
+    grid = [(env, obs, "task", "ddpg", "") for env in ("A", "B") for obs in ("fs1", "fs2")]
+    assert config_labels(grid) == ["A / fs1", "A / fs2", "B / fs1", "B / fs2"]
+    assert config_labels([("A", "fs1", "task", "ddpg", "")]) == ["fs1"]
 
 
 def test_unknown_name_lists_the_known_experiments(monkeypatch):

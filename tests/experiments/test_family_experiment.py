@@ -50,6 +50,7 @@ def test_the_file_expands_to_the_family_grid_seed_first() -> None:
     assert [_without_demo_path(c) for c in runs] == [_without_demo_path(c) for c in expected]
     assert exp.demos == DemoRecipe(episodes=100, seed=0)
     assert len({c.agent.demos.path for c in runs}) == len(TARGETS)  # one recording per task
+    assert exp.arms() == [f"tsrl/{task}" for task in TARGETS]  # each task's own obs goes with its env
 
 
 def test_the_runner_runs_the_file_cut_to_seconds(tmp_path: Path) -> None:

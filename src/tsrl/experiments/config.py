@@ -517,9 +517,14 @@ def resolve_experiment(name_or_file: str) -> Path:
 
 def config_labels(keys: list[Key]) -> list[str]:
     """Short labels naming only what differs between configurations (obs alone if nothing does); a task
-    file in the env axis is named by its file name without the folder and suffix."""
-    varying = [i for i in range(len(keys[0])) if len({k[i] for k in keys}) > 1] or [1]
-    return [" / ".join(env_label(k[i]) for i in varying) for k in keys]
+    file in the env axis is named by its file name without the folder and suffix. An obs or action
+    that each env has one of (each task's own, "") goes with the env and is left out."""
+    varying = [i for i in range(len(keys[0])) if len({k[i] for k in keys}) > 1]
+    env_own = [
+        i for i in (1, 2) if 0 in varying and len({(k[0], k[i]) for k in keys}) == len({k[0] for k in keys})
+    ]
+    shown = [i for i in varying if i not in env_own] or [1]
+    return [" / ".join(env_label(k[i]) for i in shown) for k in keys]
 
 
 def env_label(env: str) -> str:
