@@ -1,10 +1,14 @@
 """FrankaBackend's call sequence against a stand-in `franky` module (tests/deploy/test_franky_sim.py runs
 it against franky-sim): the realtime option reaches franky, a held target is not re-sent, a command
-franky refuses is counted and recovered from without stopping the loop, a non-finite command never
-reaches franky, close stops the motion and drops the connection; --no-franka-realtime is franka's."""
+franky refuses is counted, recovered from and answered with franky's message, a non-finite command
+never reaches franky, close stops the motion and drops the connection; --no-franka-realtime is
+franka's. In `tsrl deploy`, a refused command is a fault the safety layer handles: the commands hold
+until the next policy step (the log says which, and replays to the same commands), and 5 refused in a
+row stop the deployment with a one-line reason in the log and the summary (exit 1, the arm stopped)."""
 
 from __future__ import annotations
 
+import json
 import sys
 import types
 
@@ -13,18 +17,28 @@ import pytest
 
 from tsrl.cli import main
 from tsrl.deploy.backends import FrankaBackend
+from tsrl.deploy.contract import read_contract
+from tsrl.deploy.loop import read_log_records, replay
 from tsrl.exceptions import InvalidAction
 
 
 class StandInRobot:
-    """Records franky.Robot's calls; `move` raises franky's planner error on the calls in `refuse`."""
+    """Records franky.Robot's calls; `move` raises franky's planner error on the calls in `refuse` and
+    on every call from `refuse_from` on; a JointMotion's target is the next joint state read (`HOME`
+    at first, at rest)."""
 
     def __init__(self, address, realtime_config):
         self.calls: list[tuple] = [("Robot", address, realtime_config)]
         self.refuse: set[int] = set()
+        self.refuse_from: int | None = REFUSE_FROM
         self.moves = 0
         self.relative_dynamics_factor = 1.0
+        self.q = list(HOME)
         ROBOTS.append(self)
+
+    @property
+    def current_joint_state(self):
+        return types.SimpleNamespace(position=list(self.q), velocity=[0.0] * len(self.q))
 
     def recover_from_errors(self):
         self.calls.append(("recover_from_errors",))
@@ -32,12 +46,17 @@ class StandInRobot:
 
     def move(self, motion, asynchronous=False):
         self.moves += 1
-        if self.moves in self.refuse:
+        if self.moves in self.refuse or (self.refuse_from is not None and self.moves >= self.refuse_from):
             raise RuntimeError("Motion planner failed with error code -111")
         self.calls.append(("move", motion, asynchronous))
+        if motion[0] == "JointMotion":
+            self.q = list(motion[1])
 
 
 ROBOTS: list[StandInRobot] = []
+#: The stand-in arm's first joint state, and the move from which every move is refused (None: none).
+HOME: list[float] = [0.0] * 7
+REFUSE_FROM: int | None = None
 
 
 @pytest.fixture
@@ -69,8 +88,9 @@ def test_held_targets_are_not_resent_and_a_refused_command_does_not_stop_the_loo
     robot = ROBOTS[0]
     robot.refuse = {3}  # franky's third move call fails
     a, b, c = np.zeros(7), np.full(7, 0.01), np.full(7, 0.02)
-    for q in (a, a, a, b, b, c, c, c):
-        backend.send(q)
+    answers = [backend.send(q) for q in (a, a, a, b, b, c, c, c)]
+    # franky's refusal is send's answer (one line), a fault the deploy loop's safety layer handles
+    assert answers == [None] * 5 + ["franky: Motion planner failed with error code -111", None, None]
     moves = [call[1][1] for call in robot.calls if call[0] == "move"]
     # a once (held twice), b once, c refused once, then sent afresh once and held.
     assert moves == [tuple(a), tuple(b), tuple(c)] and robot.moves == 4
@@ -90,3 +110,75 @@ def test_no_franka_realtime_is_the_franka_backends_option(capsys, tmp_path):
     assert code == 2 and err == (
         "tsrl: error: --no-franka-realtime is the franka backend's; accepted with --backend franka"
     )
+
+
+@pytest.fixture
+def panda_reach(exports):
+    return exports("panda_reach", env_id="tsrl/PandaReach-v0")
+
+
+def deploy_on_stand_in(export, log, monkeypatch, episodes: int = 1, refuse=(), refuse_from=None) -> int:
+    """`tsrl deploy` of `export` on the stand-in franky (at the contract's home) with the moves in
+    `refuse` refused, and every one from `refuse_from` on."""
+    monkeypatch.setattr(sys.modules[__name__], "HOME", list(read_contract(export)["robot"]["home_q"]))
+    monkeypatch.setattr(sys.modules[__name__], "REFUSE_FROM", refuse_from)
+    refused = set(refuse)
+    original = StandInRobot.__init__
+
+    def init(self, address, realtime_config):
+        original(self, address, realtime_config)
+        self.refuse = refused
+
+    monkeypatch.setattr(StandInRobot, "__init__", init)
+    options = ["--backend", "franka", "--address", "127.0.0.2", "--no-franka-realtime"]
+    return main(["deploy", str(export), *options, "--episodes", str(episodes), "--log", str(log)])
+
+
+def test_a_refused_command_holds_until_the_next_step_and_replays_to_the_same_commands(
+    franky, panda_reach, tmp_path, monkeypatch, capsys
+):
+    log = tmp_path / "deploy.jsonl"
+    assert deploy_on_stand_in(panda_reach, log, monkeypatch, refuse={3}) == 0
+    out = capsys.readouterr().out
+    assert "faults: command_refused x1" in out and "stopped" not in out
+    (robot,) = ROBOTS
+    assert robot.moves > 3 and robot.calls[-1] == ("move", ("JointStopMotion",), False)
+    records = read_log_records(log)
+    (episode,) = records.episodes
+    assert episode["faults"]["command_refused"] == 1 and episode["stopped"] is None
+    refused = [r for r in records.cycles if r.get("refused")]
+    assert len(refused) == 1 and refused[0]["step"] == 0 and "command_refused" in refused[0]["faults"]
+    ((tick, why),) = refused[0]["refused"]
+    assert why == "franky: Motion planner failed with error code -111"
+    assert tick < len(refused[0]["servo"]) - 1  # commands followed it in its period: held ones
+    again = replay(log)
+    assert again.cycles == episode["steps"] and again.max_servo_difference == 0
+    # Without the hold the same log's commands come out otherwise: the hold changed what was sent.
+    lines = [json.loads(line) for line in log.read_text().splitlines()]
+    unheld = tmp_path / "unheld.jsonl"
+    unheld.write_text("".join(json.dumps(r | {"refused": []} if "refused" in r else r) + "\n" for r in lines))
+    assert replay(unheld).max_servo_difference > 1e-6
+
+
+def test_five_refused_commands_in_a_row_stop_the_deployment_in_one_line(
+    franky, panda_reach, tmp_path, monkeypatch, capsys
+):
+    log = tmp_path / "deploy.jsonl"
+    assert deploy_on_stand_in(panda_reach, log, monkeypatch, episodes=2, refuse_from=10) == 1
+    out = capsys.readouterr().out
+    reason = (
+        "the robot refused 5 commands in a row (the last: franky: Motion planner failed with error code "
+        "-111); stopped after 5 in a row"
+    )
+    (line,) = [line for line in out.splitlines() if line.startswith("stopped by the safety layer")]
+    assert line == f"stopped by the safety layer in episode 0: {reason}"
+    assert "faults: command_refused x5" in out
+    (robot,) = ROBOTS
+    assert robot.moves == 9 + 5 + 1  # 9 taken, 5 refused, then JointStopMotion on close (also refused,
+    assert robot.calls[-1] == ("recover_from_errors",)  # and recovered from: the arm stopped on its error)
+    records = read_log_records(log)
+    (episode,) = records.episodes  # the second episode never started
+    assert episode["stopped"] == reason and records.ends_early is None
+    refused = [tick for r in records.cycles for tick, _ in r.get("refused", [])]
+    assert len(refused) == 5
+    assert replay(log).max_servo_difference == 0

@@ -61,10 +61,11 @@ class RobotBackend(Protocol):
     def read_state(self) -> RobotState:
         """The latest measured state."""
 
-    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         """A joint position command (n,) for this servo period, and the tool command if any (the tool
         actuator's control value: suction 1 on / 0 off, a gripper's target width [m];
-        Controller.tool)."""
+        Controller.tool). Returns None, or why the robot refused the command (one line): a fault the
+        safety layer handles (tsrl.deploy.safety.RefusedCommands)."""
 
     def wait(self) -> None:
         """Returns at the start of the next servo period."""
@@ -176,13 +177,14 @@ class MujocoBackend:
         self._last_state = RobotState(self.now(), q, self.data.qvel[self._dofs].copy(), objects, width)
         return self._last_state
 
-    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
             raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
         if self.drop_rate and self._rng.random() < self.drop_rate:
-            return  # lost on the way
+            return None  # lost on the way (unnoticed, as a lost message is)
         self._queue.append((q.copy(), tool))
+        return None
 
     def wait(self) -> None:
         """Applies the command due now (after `latency`), then one physics step; paced in real time."""
@@ -232,8 +234,9 @@ class ShadowBackend:
     def read_state(self) -> RobotState:
         return self.backend.read_state()
 
-    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         self.sent += 1  # logged by the deploy loop; never forwarded
+        return None
 
     def wait(self) -> None:
         self.backend.wait()
@@ -294,9 +297,10 @@ class UrRtdeBackend:
         qd = np.asarray(self._receive.getActualQd(), dtype=np.float64)
         return RobotState(self.now(), q, qd, {})
 
-    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         # velocity and acceleration are unused by servoJ (ur-rtde's documentation); dt is the period.
-        self._control.servoJ(list(map(float, q)), 0.0, 0.0, self.period, self.lookahead_time, self.gain)
+        ok = self._control.servoJ(list(map(float, q)), 0.0, 0.0, self.period, self.lookahead_time, self.gain)
+        return "ur-rtde's servoJ returned false" if ok is False else None
 
     def wait(self) -> None:
         self._control.waitPeriod(self._t_start)
@@ -317,8 +321,9 @@ class FrankaBackend:
     Each new command is `robot.move(JointMotion(q), asynchronous=True)`, which franky re-plans at once
     (Ruckig, within the arm's limits times `relative_dynamics_factor`); a command equal to the last one
     sent is not sent again (the motion already heads there). A command franky refuses (e.g. "Motion
-    planner failed") is not sent: it is counted in `failed_commands`, franky's error recovery runs, and
-    the next command is sent afresh, so the loop goes on. State from `robot.current_joint_state`
+    planner failed") is counted in `failed_commands`, franky's error recovery runs, the next command is
+    sent afresh, and `send` returns franky's message: a fault the deploy loop's safety layer handles
+    (tsrl.deploy.safety.RefusedCommands: hold, count, stop after several in a row). State from `robot.current_joint_state`
     (position, velocity). No objects: a reach task only.
 
     Args:
@@ -375,20 +380,21 @@ class FrankaBackend:
             self.now(), np.asarray(state.position, np.float64), np.asarray(state.velocity, np.float64), {}
         )
 
-    def send(self, q: np.ndarray, tool: float | None = None) -> None:
+    def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
             raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
         if self._sent is not None and np.array_equal(q, self._sent):
-            return  # a held target: the motion already heads there
+            return None  # a held target: the motion already heads there
         try:
             self._robot.move(self._franky.JointMotion(q.tolist()), asynchronous=True)
-        except (self._franky.Exception, RuntimeError):  # franky's planner errors are RuntimeErrors
+        except (self._franky.Exception, RuntimeError) as err:  # franky's planner errors are RuntimeErrors
             self.failed_commands += 1
             self._sent = None  # the next command is sent afresh
             self._robot.recover_from_errors()
-            return
+            return f"franky: {_one_line(err)}"
         self._sent = q.copy()
+        return None
 
     def wait(self) -> None:
         ahead = self._next - self.now()
@@ -400,12 +406,21 @@ class FrankaBackend:
         return None
 
     def close(self) -> None:
-        """Stops the motion and drops the connection (libfranka closes it with the robot object)."""
+        """Stops the motion and drops the connection (libfranka closes it with the robot object); a stop
+        franky refuses (the arm stopped on its error already) is followed by its error recovery."""
         if self._robot is not None:
             try:
                 self._robot.move(self._franky.JointStopMotion())
+            except (self._franky.Exception, RuntimeError):
+                self._robot.recover_from_errors()
             finally:
                 self._robot = None
+
+
+def _one_line(err: BaseException) -> str:
+    """An exception's message on one line (its type where it has none)."""
+    text = " ".join(str(err).split())
+    return text or type(err).__name__
 
 
 #: Backend names of `tsrl deploy --backend`.

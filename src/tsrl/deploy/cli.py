@@ -109,7 +109,7 @@ class Deploy:
             return self._replay()
         import numpy as np
 
-        from .backends import FrankaBackend, ShadowBackend, check_backend, make_backend
+        from .backends import ShadowBackend, check_backend, make_backend
         from .controller import Controller, ControllerOptions
         from .loop import DeployLog, log_header, run_episodes
         from .timing import worst_of
@@ -173,10 +173,9 @@ class Deploy:
                 f"episode {i} (seed {r.seed}): {'success' if r.success else 'failure'}{true}, final distance "
                 f"{r.distance:.4f} m, faults: {faults}{timing}"
             )
-        if isinstance(backend, FrankaBackend) and backend.failed_commands:
-            print(
-                f"franka: {backend.failed_commands} commands refused by franky (each followed by its recovery)"
-            )
+        stopped = next((r.stopped for r in results if r.stopped is not None), None)
+        if stopped is not None:
+            print(f"stopped by the safety layer in episode {len(results) - 1}: {stopped}")
         compute = np.concatenate([r.compute_s for r in results]) * 1e3
         interp = np.concatenate([r.interpolate_s for r in results]) * 1e6
         wins = sum(r.success for r in results)
@@ -188,7 +187,7 @@ class Deploy:
             f"p99 {np.percentile(compute, 99):.3f} ms; interpolate p99 {np.percentile(interp, 99):.1f} us; "
             f"{loop}log: {self.log}" + (" (dry run: nothing was sent)" if self.dry_run else "")
         )
-        return 0
+        return 0 if stopped is None else 1
 
     def _replay(self) -> int:
         from .loop import replay

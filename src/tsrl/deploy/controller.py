@@ -18,7 +18,8 @@ One policy step, `act(q, qd, objects, goal, t=...)`:
 4. the interface's command (the env's own: `ActionMap.ik_target`, the IK step with the run's IK
    options, the tool command), the TCP target within the task's workspace box;
 5. the joint limiter (tsrl.deploy.safety): the target within the joint limits (less a margin); the
-   servo-rate commands from `interpolate(t)` within the speed and acceleration limits.
+   servo-rate commands from `interpolate(t)` within the speed and acceleration limits; a command the
+   robot refuses (`refused(t)`): hold until the next step.
 
 Every step's inputs, features, action, targets and faults are in `controller.last` (a `Cycle`).
 Imports numpy, mujoco and onnxruntime only (never torch or stable-baselines3).
@@ -43,7 +44,7 @@ from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
 from .contract import POLICY, read_contract
 from .exported import exported_interface
 from .policy import OnnxPolicy
-from .safety import JOINT_LIMIT, JointLimiter
+from .safety import COMMAND_REFUSED, JOINT_LIMIT, JointLimiter
 
 #: Faults a step reports (`Cycle.faults`); those in HOLDS make it hold instead of acting.
 NONFINITE_STATE = "nonfinite_state"
@@ -355,6 +356,14 @@ class Controller:
         """The servo command (n,) at time t: one servo period further along toward the last target,
         within the joint, speed and acceleration limits (tsrl.deploy.safety)."""
         return self.limiter.step(t)
+
+    def refused(self, t: float) -> None:
+        """The robot refused the servo command of time t (tsrl.deploy.safety.RefusedCommands): the
+        commands stop as fast as the limits allow and hold there until the next policy step, which
+        acts afresh; the last step reports COMMAND_REFUSED."""
+        self.limiter.hold(t)
+        if self.last is not None and COMMAND_REFUSED not in self.last.faults:
+            self.last.faults = (*self.last.faults, COMMAND_REFUSED)
 
     @property
     def suction(self) -> bool:

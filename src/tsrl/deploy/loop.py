@@ -6,9 +6,10 @@ fresh state) and `control_period / backend.period` servo ticks, each sending `in
 last step the state is read once more and the episode's success is the task's rule on it.
 
 The log is JSON lines: a header (export folder, contract sha256, backend, options), one record per
-policy step (state, features, action, IK target, joint target, the period's servo commands, faults,
-compute time, wall-clock start and latency) and one per episode (success, the loop's figures:
-tsrl.deploy.timing). `replay` recomputes every step from its logged inputs with a fresh controller
+policy step (state, features, action, IK target, joint target, the period's servo commands and those
+the robot refused, faults, compute time, wall-clock start and latency) and one per episode (success,
+why the safety layer stopped, if it did; the loop's figures: tsrl.deploy.timing). A command the robot
+refuses is a fault the safety layer handles (hold, count, stop after several in a row: `run_episodes`). `replay` recomputes every step from its logged inputs with a fresh controller
 (the commands must come out the same) and renders the logged states.
 """
 
@@ -31,6 +32,7 @@ from ..exceptions import InvalidConfig
 from .backends import MujocoBackend, RobotBackend, check_backend
 from .contract import CONTRACT, sha256
 from .controller import Controller, ControllerOptions, Cycle
+from .safety import COMMAND_REFUSED, MAX_REFUSED_IN_ROW, RefusedCommands
 from .timing import LoopTiming
 
 #: How the servo commands of a period are made: the limiter's interpolation (always on hardware), or
@@ -60,6 +62,8 @@ class EpisodeResult:
     """Each policy step's latency [s]: its start to the period's first command sent."""
     timing: LoopTiming | None = None
     """The episode's control-loop figures (rate, latency, jitter), set at its end."""
+    stopped: str | None = None
+    """Why the safety layer stopped the deployment in this episode (one line), or None."""
 
 
 class DeployLog:
@@ -86,13 +90,15 @@ class DeployLog:
         compute_s: float,
         wall_t: float,
         latency_s: float,
+        refused: Sequence[tuple[int, str]] = (),
     ) -> None:
-        """A policy step: the Cycle, then the period's servo calls (times [s] and commands); its
-        wall-clock start [s since the episode's first step] and latency [s]."""
+        """A policy step: the Cycle, then the period's servo calls (times [s] and commands) and those
+        the robot refused ([tick, why], the commands holding after each); its wall-clock start [s since
+        the episode's first step] and latency [s]."""
         record = {"type": "cycle", "episode": episode, "step": step, "compute_s": compute_s}
         record |= {"wall_t": wall_t, "latency_s": latency_s}
         record |= dataclasses.asdict(cycle)
-        record |= {"servo_t": servo_t, "servo": servo}
+        record |= {"servo_t": servo_t, "servo": servo, "refused": [list(r) for r in refused]}
         self._write(record)
 
     def episode(self, index: int, result: EpisodeResult) -> None:
@@ -106,6 +112,7 @@ class DeployLog:
                 "distance": result.distance,
                 "steps": result.steps,
                 "faults": dict(result.faults),
+                "stopped": result.stopped,
                 "timing": None if result.timing is None else result.timing.record(),
             }
         )
@@ -189,9 +196,15 @@ def run_episodes(
     goals: Sequence[ArrayLike | None] | None = None,
     log: DeployLog | None = None,
     servo: ServoMode = "interpolate",
+    max_refused: int = MAX_REFUSED_IN_ROW,
 ) -> list[EpisodeResult]:
     """Runs one episode per seed (goals[i], or drawn as the task draws it with seeds[i]); see the
-    module docstring. For a dry run, pass a ShadowBackend (nothing is sent; logged alike)."""
+    module docstring. For a dry run, pass a ShadowBackend (nothing is sent; logged alike).
+
+    A servo command the backend refuses (`send` says why) is a fault the safety layer handles
+    (tsrl.deploy.safety.RefusedCommands): the step reports COMMAND_REFUSED, the commands hold until
+    the next policy step; `max_refused` in a row stop the deployment there (`EpisodeResult.stopped`
+    says why; no further episode runs; the backend is closed, which stops the arm)."""
     check_backend(backend, controller.contract)
     if servo == "hold" and not isinstance(backend, MujocoBackend):
         raise InvalidConfig("--servo hold (the training env's command timing) is for the MuJoCo backend only")
@@ -202,6 +215,7 @@ def run_episodes(
             f"period {backend.period} s"
         )
     results = []
+    refusals = RefusedCommands(max_refused)
     backend.connect()
     try:
         for i, seed in enumerate(seeds):
@@ -210,10 +224,14 @@ def run_episodes(
                 if seed is None:
                     raise InvalidConfig("an episode needs a goal or a seed to draw one from")
                 goal = controller.sample_goal(seed)
-            result = _episode(controller, backend, i, seed, np.asarray(goal, np.float64), ticks, log, servo)
+            result = _episode(
+                controller, backend, i, seed, np.asarray(goal, np.float64), ticks, log, servo, refusals
+            )
             results.append(result)
             if log is not None:
                 log.episode(i, result)
+            if result.stopped is not None:
+                break
     finally:
         backend.close()
     return results
@@ -228,6 +246,7 @@ def _episode(
     ticks: int,
     log: DeployLog | None,
     servo: ServoMode,
+    refusals: RefusedCommands,
 ) -> EpisodeResult:
     backend.reset(seed)
     if isinstance(backend, MujocoBackend):
@@ -250,6 +269,7 @@ def _episode(
         assert cycle is not None
         result.faults.update(cycle.faults)
         times, commands = [], []
+        refused: list[tuple[int, str]] = []
         for tick in range(ticks):
             t_servo = backend.now() + h  # the command is where the servos are to be at the tick's end
             start = time.perf_counter()
@@ -259,13 +279,34 @@ def _episode(
                 command = q_target
             times.append(t_servo)
             commands.append(command)
-            backend.send(command, controller.tool)
+            why = backend.send(command, controller.tool)
             if tick == 0:
                 result.latency_s.append(time.perf_counter() - result.start_s[-1])
+            if why is None:
+                refusals.accepted()
+            else:  # the safety layer's rule: hold, count, stop after max_refused in a row
+                controller.refused(t_servo)
+                refused.append((tick, why))
+                result.faults[COMMAND_REFUSED] += 1
+                result.stopped = refusals.refused(why)
+                if result.stopped is not None:
+                    break
             backend.wait()
         if log is not None:
             wall_t = result.start_s[-1] - result.start_s[0]
-            log.cycle(index, step, cycle, times, commands, result.compute_s[-1], wall_t, result.latency_s[-1])
+            log.cycle(
+                index,
+                step,
+                cycle,
+                times,
+                commands,
+                result.compute_s[-1],
+                wall_t,
+                result.latency_s[-1],
+                refused,
+            )
+        if result.stopped is not None:
+            break
     result.timing = LoopTiming.of(result.start_s, result.latency_s, controller.control_period)
     state = backend.read_state()
     info = controller.outcome(state.q, state.qd, state.objects, state.tool)
@@ -337,10 +378,13 @@ def replay(
         cycle = controller.last
         if cycle is not None and cycle.action is not None and record["action"] is not None:
             max_action = max(max_action, _difference(cycle.action, record["action"]))
-        for t_servo, logged in zip(record["servo_t"], record["servo"]):
+        refused = {int(r[0]) for r in record.get("refused", ())}
+        for tick, (t_servo, logged) in enumerate(zip(record["servo_t"], record["servo"])):
             command = controller.interpolate(t_servo)
             if header.get("servo") != "hold":
                 max_servo = max(max_servo, _difference(command, logged))
+            if tick in refused:
+                controller.refused(t_servo)  # as the safety layer held after it
     frames = [r for r in cycles if r["type"] == "cycle"][::every]
     out = _render(controller, frames, video, size, every) if video is not None else None
     return ReplayResult(n, max_target, max_action, max_servo, out, records.ends_early)

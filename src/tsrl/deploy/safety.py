@@ -1,4 +1,5 @@
-"""The safety layer's joint limiter: servo-rate joint commands within position, speed and acceleration limits.
+"""The safety layer's joint limiter (servo-rate joint commands within position, speed and acceleration
+limits) and its rule for commands the robot refuses (`RefusedCommands`).
 
 A policy step sets a *reference*: the step's target q* (within the joint limits) at once (the
 default: as the training environment sets its servos' targets), or with `ramp` from the command's
@@ -29,6 +30,41 @@ import numpy as np
 
 #: What a policy step's target was bounded by (the controller reports it).
 JOINT_LIMIT = "joint_limit"
+#: A servo command the robot refused (RobotBackend.send answered why): the step's fault.
+COMMAND_REFUSED = "command_refused"
+#: Refused commands in a row after which a deployment stops (RefusedCommands).
+MAX_REFUSED_IN_ROW = 5
+
+
+class RefusedCommands:
+    """The safety layer's rule for servo commands the robot refuses (e.g. franky's "Motion planner
+    failed"): each one is a fault of its policy step, after which the command holds (the limiter stops as
+    fast as its limits allow: JointLimiter.hold); `max_in_row` refused in a row stop the deployment with
+    a one-line reason (`refused` returns it). An accepted command resets the run of refusals.
+    """
+
+    def __init__(self, max_in_row: int = MAX_REFUSED_IN_ROW):
+        if max_in_row < 1:
+            raise ValueError(f"max_in_row must be >= 1; got {max_in_row}")
+        self.max_in_row = max_in_row
+        self.total = 0
+        self.in_row = 0
+
+    def accepted(self) -> None:
+        """The robot took a command."""
+        self.in_row = 0
+
+    def refused(self, why: str) -> str | None:
+        """The robot refused a command (`why`, its one-line answer); the reason to stop (one line), or
+        None to hold and go on."""
+        self.total += 1
+        self.in_row += 1
+        if self.in_row < self.max_in_row:
+            return None
+        return (
+            f"the robot refused {self.in_row} commands in a row (the last: {why}); stopped after "
+            f"{self.max_in_row} in a row"
+        )
 
 
 class JointLimiter:
