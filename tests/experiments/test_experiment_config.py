@@ -116,6 +116,9 @@ def test_grid_is_seed_major_and_carries_agent_overrides(tmp_path):
             + 'from_env = "tsrl/UR5eReach-v0"\nenv = "tsrl/UR5eReach-v0"',
             ["[[budgets]] with [[finetune]]"],
         ),
+        ('[[agents]]\nalgo = "td3"', ["[agents[0]] algo is a grid axis"]),
+        ("[[agents]]\nlr = 0.1", ["'lr'", "agents[0]", "learning_rate"]),
+        ("[[agents]]\n[[agents]]\nlayer_norm = 'critic'", ["two [[agents]] give one run folder name"]),
         (
             'action = ["joint"]\n[demos]\nepisodes = 5',
             ["[demos]", "got 'joint'", "taskspace or taskspace_orient"],
@@ -160,6 +163,31 @@ def test_budgets_give_their_env_its_own_budget_and_evaluations(tmp_path):
         for seed in (0, 1)
     }
     assert exp.arms() == ["tsrl/UR5eReach-v0", "tsrl/PandaReach-v0", "reach"]  # a budget is no variant
+
+
+def test_agents_are_a_grid_axis_each_the_agent_table_with_its_changes(tmp_path):
+    path = tmp_path / "agents.toml"
+    path.write_text(
+        GOOD
+        + "[agent.demos]\nbc_weight = 0.5\n[demos]\nepisodes = 3\n"
+        + "[[agents]]\n[[agents]]\nlearner = 'fast'\n[[agents]]\n[agents.demos]\nbatch_share = 0.0\n"
+    )
+    exp = load_experiment(path)
+    runs = exp.runs()
+    assert [(c.obs, c.seed, c.agent.learner) for c in runs[:3]] == [
+        ("fs1", 0, "paper"),
+        ("fs1", 0, "fast"),
+        ("fs1", 0, "paper"),
+    ]
+    assert len(runs) == 12 and all(
+        c.agent.learning_starts == 100 and c.agent.demos.bc_weight == 0.5 for c in runs
+    )
+    assert [c.agent.demos.active for c in runs[:3]] == [True, True, False]  # the third: no demonstrations
+    assert [c.run_name.removeprefix("tsrl-UR5eReach-v0__fs1__taskspace__") for c in runs[:3]] == [
+        "ddpg__s0__demos",
+        "td3__s0__demos__fast",
+        "ddpg__s0",
+    ]  # the fast learner's own algorithm where the grid gives none
 
 
 def test_labels_leave_out_an_obs_or_action_that_goes_with_its_env():

@@ -386,3 +386,19 @@ def test_run_configs_trains_configs_without_a_definition_and_reuses_them(tmp_pat
     assert not (tmp_path / "suite" / "experiment.json").exists()
     again = run_configs(runs, tmp_path / "suite", workers=1, stream=io.StringIO())
     assert [o.status for o in again] == ["skipped", "skipped"]
+
+
+def test_agents_of_one_experiment_run_into_one_folder_and_are_its_arms(tmp_path):
+    definition = tmp_path / "tiny-agents.toml"
+    definition.write_text(
+        TINY.replace('obs = ["fs1", "baseline"]', 'obs = ["fs1"]')
+        + '[[agents]]\n[[agents]]\n[agents.her]\nrelabel = "plain"\n'
+        + '[[comparisons]]\na = "agent.her.relabel=feature"\nb = "agent.her.relabel=plain"\n'
+    )
+    exp = load_experiment(definition)
+    outcomes = run_experiment(exp, tmp_path / "results", workers=2, stream=io.StringIO())
+    assert [o.status for o in outcomes] == ["trained"] * 4
+    write_report(tmp_path / "results" / "tiny-agents")
+    with open(tmp_path / "results" / "tiny-agents" / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted(r["variant"] for r in rows) == ["agent.her.relabel=feature", "agent.her.relabel=plain"]

@@ -210,6 +210,10 @@ class ExperimentConfig:
     agent: AgentConfig = field(default_factory=AgentConfig)
     """Settings shared by every run (the file's [agent] table overrides AgentConfig's defaults); its
     `algo` is replaced by each grid point's."""
+    agents: tuple[AgentConfig, ...] = ()
+    """A grid axis of agents (the file's [[agents]] tables, each [agent] with its own changes), e.g. the
+    paper's learner beside the fast one; none: `agent` alone. They must differ in what a run's name
+    says (HER relabelling, demonstrations on or off, learner, action penalty): one folder holds the runs."""
     demos: DemoRecipe | None = None
     """Demonstrations every run trains with (the file's [demos] table), recorded by the experiment."""
     comparisons: tuple[Comparison, ...] = ()
@@ -322,7 +326,7 @@ class ExperimentConfig:
     def _check_demos(self) -> None:
         if self.demos is None:
             return
-        if self.agent.demos.path is not None:
+        if any(a.demos.path is not None for a in self.grid_agents()):
             raise InvalidConfig("[demos] records the demonstrations: leave [agent.demos] path unset")
         from ..agents.config import TASK_ACTION, task_defaults
         from ..envs.solvers import solver_for
@@ -341,25 +345,39 @@ class ExperimentConfig:
         order, each with `init_from` its source run's folder. With [demos], each run's demonstration
         file is `demo_file(exp_dir, cfg)`. exp_dir defaults to ./<name>."""
         folder = exp_dir if exp_dir is not None else Path(self.name)
+        agents = self.grid_agents()
         grid = [
-            self._run(env, obs, action, algo, seed, folder)
-            for seed, env, obs, action, algo in itertools.product(
-                self.seeds, self.env, self.obs, self.action, self.algo
+            self._run(env, obs, action, algo, seed, folder, agent)
+            for seed, env, obs, action, algo, agent in itertools.product(
+                self.seeds, self.env, self.obs, self.action, self.algo, agents
             )
         ]
         tuned = [
             dataclasses.replace(
-                self._run(f.env, obs, action, algo, seed, folder),
-                init_from=str(folder / self._run(f.from_env, obs, action, algo, seed, folder).run_name),
+                self._run(f.env, obs, action, algo, seed, folder, agent),
+                init_from=str(
+                    folder / self._run(f.from_env, obs, action, algo, seed, folder, agent).run_name
+                ),
             )
-            for seed, f, obs, action, algo in itertools.product(
-                self.seeds, self.finetune, self.obs, self.action, self.algo
+            for seed, f, obs, action, algo, agent in itertools.product(
+                self.seeds, self.finetune, self.obs, self.action, self.algo, agents
             )
         ]
         return grid + tuned
 
+    def grid_agents(self) -> tuple[AgentConfig, ...]:
+        """The agents of the grid: the [[agents]], or the [agent] alone."""
+        return self.agents or (self.agent,)
+
     def _run(
-        self, env: str, obs: str, action: str, algo: Algo | Literal[""], seed: int, folder: Path
+        self,
+        env: str,
+        obs: str,
+        action: str,
+        algo: Algo | Literal[""],
+        seed: int,
+        folder: Path,
+        agent: AgentConfig,
     ) -> TrainConfig:
         budget = next((b for b in self.budgets if b.env == env), None)
         cfg = TrainConfig(
@@ -371,7 +389,7 @@ class ExperimentConfig:
             eval_freq=self.eval_freq if budget is None or budget.eval_freq is None else budget.eval_freq,
             eval_episodes=self.eval_episodes,
             checkpoint_freq=self.checkpoint_freq,
-            agent=dataclasses.replace(self.agent, algo=algo or self.agent.algo),
+            agent=dataclasses.replace(agent, algo=algo or agent.algo),
         )
         if self.demos is None:
             return cfg
@@ -413,13 +431,35 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():
                 table[key] = str(path.parent / env)
     agent = data.get("agent")
-    if isinstance(agent, dict) and "algo" in agent:
-        raise InvalidConfig(f"{path}: [agent] algo is a grid axis: set `algo = [...]` at the top level")
+    for where, table in [
+        ("[agent]", agent),
+        *((f"[agents[{i}]]", a) for i, a in enumerate(_tables(data, "agents"))),
+    ]:
+        if isinstance(table, dict) and "algo" in table:
+            raise InvalidConfig(f"{path}: {where} algo is a grid axis: set `algo = [...]` at the top level")
+    if "agents" in data and isinstance(data["agents"], list):  # each [[agents]] is [agent] with its changes
+        base = agent if isinstance(agent, dict) else {}
+        data["agents"] = [_merged(base, a) if isinstance(a, dict) else a for a in data["agents"]]
     exp = load_table(ExperimentConfig, data, source=path, extra={"name": path.name.removesuffix(SUFFIX)})
     check_run_names(exp, where=str(path))
     if check_envs:
         check_environments(exp, where=str(path))
     return exp
+
+
+def _tables(data: dict[str, Any], key: str) -> list[Any]:
+    """The tables of an array of tables `key` ([] where there is none or it is not a list)."""
+    value = data.get(key)
+    return value if isinstance(value, list) else []
+
+
+def _merged(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """`base` with `changes` over it, sub-tables merged key by key."""
+    out = dict(base)
+    for key, value in changes.items():
+        both = isinstance(value, dict) and isinstance(out.get(key), dict)
+        out[key] = _merged(out[key], value) if both else value
+    return out
 
 
 def check_run_names(exp: ExperimentConfig, where: str = "experiment") -> None:
@@ -428,6 +468,11 @@ def check_run_names(exp: ExperimentConfig, where: str = "experiment") -> None:
     seen: dict[str, TrainConfig] = {}
     for cfg in exp.runs():
         first = seen.setdefault(cfg.run_name, cfg)
+        if first is not cfg and first.env_id == cfg.env_id:
+            raise InvalidConfig(
+                f"{where}: two [[agents]] give one run folder name {cfg.run_name!r}; accepted: agents that "
+                "differ in what a run's name says (her relabel, demonstrations on or off, learner, action_l2)"
+            )
         if first is not cfg:
             raise InvalidConfig(
                 f"{where}: env {first.env_id!r} and env {cfg.env_id!r} give one run folder name "
