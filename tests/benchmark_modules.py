@@ -1,5 +1,5 @@
-"""The scripts under benchmarks/ and studies/<question>/ as modules for tests (they are files, not a
-package)."""
+"""The scripts under benchmarks/, scripts/ and studies/<question>/ as modules for tests (they are
+files, not a package)."""
 
 from __future__ import annotations
 
@@ -25,6 +25,11 @@ def _load(folder: Path, name: str) -> ModuleType:
 def load_benchmark(name: str) -> ModuleType:
     """benchmarks/<name>.py imported, with benchmarks/ on sys.path for its siblings (`record`, ...)."""
     return _load(ROOT / "benchmarks", name)
+
+
+def load_script(name: str) -> ModuleType:
+    """scripts/<name>.py imported, with scripts/ on sys.path for its siblings."""
+    return _load(ROOT / "scripts", name)
 
 
 def load_study(question: str, name: str) -> ModuleType:

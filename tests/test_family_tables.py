@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from benchmark_modules import load_study
+from benchmark_modules import load_script, load_study
 
 from tsrl.agents.config import TASK_ACTION, AgentConfig, DemoConfig, TrainConfig
 from tsrl.envs import load_task
@@ -106,14 +106,14 @@ def test_a_run_of_another_task_has_no_family_target() -> None:
 
 def test_a_family_experiments_runs_saved_render_the_family_table(tmp_path: Path) -> None:
     """`tsrl experiment`'s runner on the family file cut to seconds, its folder saved as
-    save_experiment.py saves it: the family table judges it against the push's target."""
+    scripts/save_experiment.py saves it: the family table judges it against the push's target."""
     import dataclasses
     import io
 
     from tsrl.experiments.config import DemoRecipe, TaskBudget
     from tsrl.experiments.pool import run_experiment
 
-    save = load_study("manipulation-family", "save_experiment")
+    save = load_script("save_experiment")
     push = "tsrl/PandaPush-v0"
     exp = dataclasses.replace(
         load_experiment(ROOT / "experiments" / "manipulation-family.toml"),
