@@ -1,19 +1,12 @@
 """Learning benchmark: DDPG + HER with the paper's settings; prints env steps and wall time to 50/90/95%
 evaluation success, and env steps per second including learning (evaluation time excluded).
 
-    python studies/learner-benchmarks/learning.py tsrl     # tsrl/UR5eReach-v0, fs1, taskspace: 3 seeds
-    python studies/learner-benchmarks/learning.py fetch    # Gymnasium-Robotics FetchReach-v4, same agent: 3 seeds
-    python studies/learner-benchmarks/learning.py her      # fs1 with feature-aware HER vs stable-baselines3's plain HER
-    python studies/learner-benchmarks/learning.py all      # the three above
-    python studies/learner-benchmarks/learning.py demos    # tsrl/UR5ePickPlace-v0 (fs1) with 100 scripted demonstrations
-                                           # vs without, same seeds: 5 seeds, 50,000 env steps, 100 eval episodes
-    python studies/learner-benchmarks/learning.py panda    # tsrl/PandaReach-v0 (fs1) beside tsrl/UR5eReach-v0 (fs1), same seeds:
-                                           # every Panda seed at >= 95% within 2x the UR5e's env steps?
+    python studies/learner-benchmarks/learning.py fetch    # Gymnasium-Robotics FetchReach-v4, the paper's agent: 3 seeds
     python studies/learner-benchmarks/learning.py speed    # learner speed: gradient steps/s of each learner option (plain SB3
                                            # DDPG + HER, feature HER, demonstrations, LayerNorm, TQC, ...)
                                            # next to the matrix-multiply floor of the same batch and networks
-    python studies/learner-benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with the
-                                           # demos suite's 100 demonstrations: 5 seeds, 15,000 env steps,
+    python studies/learner-benchmarks/learning.py learner  # the `fast` learner preset on tsrl/UR5ePickPlace-v0 (fs1) with 100
+                                           # scripted demonstrations: 5 seeds, 15,000 env steps,
                                            # 100 eval episodes; --without OPTION: one option at the paper's value
     python studies/learner-benchmarks/learning.py learner-ablation  # the learner suite, each --without OPTION and each
                                            # --screen NAME, 5 seeds each (runs reused by name): one table
@@ -21,16 +14,15 @@ evaluation success, and env steps per second including learning (evaluation time
                                            # protocol beside it with smaller networks or batches (SMALL):
                                            # 5 seeds each; issue 27's 90 s target
     python studies/learner-benchmarks/learning.py speed-small  # the speed suite's rows of the fast preset and its SMALL variants
-    python studies/learner-benchmarks/learning.py learner-reach  # the `fast` preset (no demonstrations: LayerNorm critic,
-                                           # UTD 2) vs paper on tsrl/UR5eReach-v0 (fs1): 5 seeds, 3,000 env
-                                           # steps, eval every 100 on 20 episodes; every seed at 95% within 1,000?
-    python studies/learner-benchmarks/learning.py learner-obstacle  # the same two on tsrl/UR5eObstacleReach-v1 (fs1): 5
-                                           # seeds, 8,000 env steps, eval every 500 on 50 episodes; IQM of AUC
-    python studies/learner-benchmarks/learning.py learner-pose  # the same two on tsrl/UR5ePoseReach-v0 (its own fs2 and
-                                           # pose action): 5 seeds, 25,000 env steps, eval every 2,500 on 50
     python studies/learner-benchmarks/learning.py own-robot  # a model no one here wrote: Gymnasium-Robotics' Fetch arm,
                                            # unmodified (examples/robots/fetch_reach.toml), its own fs1 and
                                            # position action: 3 seeds, 10,000 env steps; every seed >= 90%?
+
+The other suites are experiment files (`tsrl experiment NAME`, tables by scripts/save_experiment.py):
+tsrl and her: experiments/learner-her.toml; panda: learner-panda.toml; demos: learner-demos.toml;
+learner-reach, learner-obstacle, learner-pose: learner-fast-reach.toml, -obstacle.toml, -pose.toml.
+The suites here vary what an experiment's [[agents]] cannot tell apart in one folder (LayerNorm,
+update ratio, network and batch sizes), need a patch to run (Fetch) or time no training (speed).
 
 Runs are ordinary tsrl run folders under --out-dir (default results/benchmarks/learning), run by
 `tsrl experiment`'s runner (tsrl.experiments.pool.run_configs): a finished one is reused, an
@@ -58,7 +50,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # record, fetch_compat
 
 from fetch_compat import register_fetch_envs
-from learner_tables import ABLATION_BUDGET, PANDA, ablation_table, speed_render, suite_lines
+from learner_tables import ABLATION_BUDGET, ablation_table, speed_render, suite_lines
 from record import DATA_CSV, Measurement, add_save_argument, write_rows
 
 from tsrl.agents import AgentConfig, HerConfig, TrainConfig
@@ -66,21 +58,15 @@ from tsrl.agents.config import NATIVE, TASK_ACTION, DemoConfig
 from tsrl.experiments.milestones import save_runs
 
 PICK = "tsrl/UR5ePickPlace-v0"
-OBSTACLE = "tsrl/UR5eObstacleReach-v1"
-POSE = "tsrl/UR5ePoseReach-v0"
 #: Per suite: (total env steps, eval every, eval episodes) where the command line gives none.
 BUDGETS = {
-    "demos": (50_000, 2_500, 100),
     "learner": (15_000, 2_500, 100),
     "learner-ablation": (15_000, 2_500, 100),
     "learner-small": (15_000, 2_500, 100),
-    "learner-reach": (3_000, 100, 20),
-    "learner-obstacle": (8_000, 500, 50),
-    "learner-pose": (25_000, 2_500, 50),
     "own-robot": (10_000, 250, 20),
 }
 BUDGET = (6_000, 200, 20)
-#: The demos suite's demonstrations: the scripted controller's, recorded once (seed 0, successes only).
+#: The learner suites' demonstrations: the scripted controller's, recorded once (seed 0, successes only).
 DEMO_EPISODES = 100
 #: The learner suite's ablations (--without): each sets one option of the fast preset to the paper's value.
 WITHOUT: dict[str, dict[str, Any]] = {
@@ -108,29 +94,13 @@ SMALL: dict[str, dict[str, Any]] = {
 #: The speed-small suite's rows (speed's labels): the fast preset and its SMALL variants.
 SPEED_SMALL = ("fast preset (UTD 2)", "fast preset, networks [128, 128]", "fast preset, batch 128")
 #: The suites of the command line, and those that run 5 seeds by default (the others 3).
-SUITES = (
-    "tsrl", "fetch", "her", "all", "demos", "panda", "speed", "own-robot", "learner", "learner-ablation",
-    "learner-reach", "learner-obstacle", "learner-pose", "learner-small", "speed-small",
-)  # fmt: skip
-FIVE_SEED_SUITES = (
-    "demos",
-    "learner",
-    "learner-ablation",
-    "learner-small",
-    "learner-reach",
-    "learner-obstacle",
-    "learner-pose",
-)
+SUITES = ("fetch", "speed", "own-robot", "learner", "learner-ablation", "learner-small", "speed-small")
+FIVE_SEED_SUITES = ("learner", "learner-ablation", "learner-small")
 #: Per suite, the kind of its table (learner_tables.py's suite_lines; default "wall").
 SUITE_TABLES = {
-    "demos": "train",
     "learner": "train",
     "learner-ablation": "ablation",
     "learner-small": "small",
-    "learner-reach": "reach_target",
-    "learner-obstacle": "auc",
-    "learner-pose": "auc",
-    "panda": "panda",
     "own-robot": "own_robot",
 }
 #: The own-robot suite's task: reach with Gymnasium-Robotics' Fetch arm (needs gymnasium-robotics).
@@ -166,8 +136,8 @@ def configs(
     demos: Path | None = None,
     without: str | None = None,
 ) -> list[TrainConfig]:
-    """The runs of a suite; agent settings are AgentConfig's defaults (the paper's) throughout, and
-    DemoConfig's for the runs with demonstrations, but in the learner suite (the fast preset)."""
+    """The runs of a suite: the fast preset with demonstrations in the learner suites, else
+    AgentConfig's defaults (the paper's agent)."""
     common = {"total_timesteps": total, "eval_freq": eval_freq, "eval_episodes": eval_episodes}
     if suite == "learner":
         assert demos is not None
@@ -179,40 +149,6 @@ def configs(
             learner="fast", demos=DemoConfig(path=str(demos)), **SMALL[suite.removeprefix("small-")]
         )
         return [TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common) for s in seeds]
-    if suite == "learner-obstacle":  # issue 27's "nothing lost elsewhere" on the obstacle reach
-        return [
-            TrainConfig(env_id=OBSTACLE, obs="fs1", seed=s, agent=agent, **common)
-            for agent in (AgentConfig(learner="fast"), AgentConfig())
-            for s in seeds
-        ]
-    if suite == "learner-pose":  # the same on the pose reach, with the task's own observation and action
-        return [
-            TrainConfig(env_id=POSE, obs="fs2", action=TASK_ACTION, seed=s, agent=agent, **common)
-            for agent in (AgentConfig(learner="fast"), AgentConfig())
-            for s in seeds
-        ]
-    if suite == "learner-reach":  # issue 27's reach target: the fast preset (no demonstrations) vs paper
-        return [
-            TrainConfig(obs="fs1", seed=s, agent=agent, **common)
-            for agent in (AgentConfig(learner="fast"), AgentConfig())
-            for s in seeds
-        ]
-    if suite == "demos":
-        assert demos is not None
-        with_demos = AgentConfig(demos=DemoConfig(path=str(demos)))
-        return [
-            TrainConfig(env_id=PICK, obs="fs1", seed=s, agent=agent, **common)
-            for agent in (with_demos, AgentConfig())
-            for s in seeds
-        ]
-    if suite == "tsrl":
-        return [TrainConfig(obs="fs1", seed=s, **common) for s in seeds]
-    if suite == "panda":
-        return [
-            TrainConfig(env_id=env, obs="fs1", seed=s, **common)
-            for env in (PANDA, "tsrl/UR5eReach-v0")
-            for s in seeds
-        ]
     if suite == "fetch":
         agent = AgentConfig(her=HerConfig(relabel="plain"))  # Fetch has no goal-dependent features
         return [
@@ -226,27 +162,17 @@ def configs(
         return [
             TrainConfig(env_id=str(OWN_ROBOT), obs=obs, action=TASK_ACTION, seed=s, **common) for s in seeds
         ]
-    if suite == "her":
-        return [
-            TrainConfig(obs="fs1", seed=s, agent=AgentConfig(her=HerConfig(relabel=mode)), **common)
-            for mode in ("feature", "plain")
-            for s in seeds
-        ]
     raise ValueError(suite)
 
 
 def run_parent(cfg: TrainConfig, out_dir: Path) -> Path:
-    """The folder of a run: <out>/<fetch|reach|pick-place|...>/ (its run name below it).
+    """The folder of a run: <out>/<fetch|pick-place|own-robot>/ (its run name below it).
 
-    The `her` suite's feature-aware runs are the `tsrl` suite's runs (same config, same folder); the
-    learner suite's ablations (--without OPTION) get <out>/without-<option>/pick-place (same run names).
+    The learner suite's ablations (--without OPTION) get <out>/without-<option>/pick-place (same run names).
     """
-    return out_dir / {
-        "FetchReach-v4": "fetch",
-        PICK: "pick-place",
-        PANDA: "panda-reach",
-        POSE: "pose-reach",
-    }.get(cfg.env_id, "own-robot" if cfg.is_task_file else "reach")
+    return out_dir / {"FetchReach-v4": "fetch", PICK: "pick-place"}.get(
+        cfg.env_id, "own-robot" if cfg.is_task_file else "reach"
+    )
 
 
 def run_all(work: list[tuple[TrainConfig, Path]], jobs: int) -> list[Path]:
@@ -273,7 +199,7 @@ def run_all(work: list[tuple[TrainConfig, Path]], jobs: int) -> list[Path]:
 
 
 def record_benchmark_demos(out_dir: Path) -> Path:
-    """The demos suite's file: 100 successful scripted pick-and-place episodes (fs1), recorded once."""
+    """The learner suites' file: 100 successful scripted pick-and-place episodes (fs1), recorded once."""
     from tsrl.agents.demo_files import save_demos, summary_line
     from tsrl.agents.demonstrators import record_demos
 
@@ -463,17 +389,16 @@ def main() -> None:
         default=None,
         help="learner suite: the preset changed as SCREENS says",
     )
-    parser.add_argument("--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (demos: 0-4)")
     parser.add_argument(
-        "--total-timesteps", type=int, default=None, help="per run (default: 6000; demos 50000)"
+        "--seeds", type=int, nargs="+", default=None, help="default: 0 1 2 (learner suites: 0-4)"
     )
     parser.add_argument(
-        "--eval-freq", type=int, default=None, help="env steps between evaluations (200; demos 2500)"
+        "--total-timesteps", type=int, default=None, help="per run (default: 6000; learner suites 15000)"
     )
-    parser.add_argument("--eval-episodes", type=int, default=None, help="20; demos 100")
     parser.add_argument(
-        "--no-demos-only", action="store_true", help="demos suite: only the runs without demonstrations"
+        "--eval-freq", type=int, default=None, help="env steps between evaluations (200; learner 2500)"
     )
+    parser.add_argument("--eval-episodes", type=int, default=None, help="20; learner suites 100")
     parser.add_argument(
         "--jobs", type=int, default=1, help="runs in parallel (timings: no more than free cores)"
     )
@@ -509,8 +434,7 @@ def main() -> None:
             strict=True,
         )
     )
-    with_demos = ("demos", "learner", "learner-ablation", "learner-small")
-    demos = record_benchmark_demos(args.out_dir) if args.suite in with_demos else None
+    demos = record_benchmark_demos(args.out_dir) if args.suite in FIVE_SEED_SUITES else None
     if args.suite == "learner-ablation":  # the learner suite's runs and each ablation's, in their folders
         work = [
             (cfg, args.out_dir / ablation_folder(without) if without else args.out_dir)
@@ -526,15 +450,9 @@ def main() -> None:
         ]
         cfgs = [cfg for cfg, _ in work]
     else:
-        suites = ["tsrl", "fetch", "her"] if args.suite == "all" else [args.suite]
-        cfgs = [
-            cfg
-            for suite in suites
-            for cfg in configs(suite, seeds, total, eval_freq, eval_episodes, demos, variant)
-            if not (args.no_demos_only and cfg.agent.demos.active)
-        ]
+        cfgs = configs(args.suite, seeds, total, eval_freq, eval_episodes, demos, variant)
         out_dir = args.out_dir / ablation_folder(variant) if variant else args.out_dir
-        work = list({(cfg.env_id, cfg.run_name): (cfg, out_dir) for cfg in cfgs}.values())  # shared runs once
+        work = [(cfg, out_dir) for cfg in cfgs]
     print(
         f"{len(work)} runs, {total} env steps each, evaluation every {eval_freq} env steps "
         f"on {eval_episodes} episodes; agent: {cfgs[0].agent if args.suite.startswith('learner') else AgentConfig()}",
