@@ -426,7 +426,7 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
             for e in envs
         ]
     for kind, key in (("evaluate", "env"), ("finetune", "env"), ("finetune", "from_env"), ("budgets", "env")):
-        for table in data.get(kind, []) if isinstance(data.get(kind), list) else []:
+        for table in _tables(data, kind):
             env = table.get(key) if isinstance(table, dict) else None
             if isinstance(env, str) and env.endswith(".toml") and not Path(env).is_absolute():
                 table[key] = str(path.parent / env)
@@ -437,7 +437,7 @@ def load_experiment(path: Path | str, check_envs: bool = True) -> ExperimentConf
     ]:
         if isinstance(table, dict) and "algo" in table:
             raise InvalidConfig(f"{path}: {where} algo is a grid axis: set `algo = [...]` at the top level")
-    if "agents" in data and isinstance(data["agents"], list):  # each [[agents]] is [agent] with its changes
+    if _tables(data, "agents"):  # each [[agents]] is [agent] with its changes
         base = agent if isinstance(agent, dict) else {}
         data["agents"] = [_merged(base, a) if isinstance(a, dict) else a for a in data["agents"]]
     exp = load_table(ExperimentConfig, data, source=path, extra={"name": path.name.removesuffix(SUFFIX)})
