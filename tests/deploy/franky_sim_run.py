@@ -5,6 +5,7 @@ namespace (started with `unshare`, joined with `nsenter`):
     conformance HOST            the RobotBackend conformance test on FrankaBackend (realtime relaxed)
     deploy HOST EXPORT LOG      `tsrl deploy` of one episode of EXPORT with --no-franka-realtime
     realtime HOST               one connection with libfranka's default realtime check
+    gripper HOST                the Franka Hand through FrankaBackend: to 70 mm, 20 mm (a grasp), 70 mm
 
 Each prints what it found; exit 0 when it ran through (a failed check exits 1 with its traceback)."""
 
@@ -67,6 +68,30 @@ def realtime(host: str) -> None:
     print("realtime: connected")
 
 
+def gripper(host: str) -> None:
+    import time
+
+    from tsrl.deploy.backends import FrankaBackend
+
+    backend = FrankaBackend(host, realtime=False, gripper=True)
+    backend.connect()
+    try:
+        state = backend.read_state()
+        print(f"gripper width {state.tool:.4f}")
+        for target in (0.07, 0.02, 0.07):  # a move, a grasp onto nothing, a move
+            answers = set()
+            deadline = time.monotonic() + 30.0  # a bound on the simulated hand's travel, not its speed
+            width = backend.read_state().tool
+            while abs(width - target) > 0.003 and time.monotonic() < deadline:
+                answers.add(backend.send(state.q, target))  # every tick, as the deploy loop sends it
+                backend.wait()
+                width = backend.read_state().tool
+            print(f"gripper to {target}: answers {sorted(map(repr, answers))}, width {width:.6f}")
+    finally:
+        backend.close()
+
+
 if __name__ == "__main__":
     command, *args = sys.argv[1:]
-    {"serve": serve, "conformance": conformance, "deploy": deploy, "realtime": realtime}[command](*args)
+    commands = {"serve": serve, "conformance": conformance, "deploy": deploy, "realtime": realtime}
+    (commands | {"gripper": gripper})[command](*args)

@@ -2,7 +2,9 @@
 it against franky-sim): the realtime option reaches franky, a held target is not re-sent, a command
 franky refuses is counted, recovered from and answered with franky's message, a non-finite command
 never reaches franky, close stops the motion and drops the connection; --no-franka-realtime is
-franka's. In `tsrl deploy`, a refused command is a fault the safety layer handles: the commands hold
+franka's. With a gripper (a gripper task's export), the Franka Hand through franky's `Gripper`: its
+width is the state's tool, a new width is sent without waiting (move to open, grasp to close), a held
+one is not re-sent, a width out of range or NaN never reaches franky. In `tsrl deploy`, a refused command is a fault the safety layer handles: the commands hold
 until the next policy step (the log says which, and replays to the same commands), and 5 refused in a
 row stop the deployment with a one-line reason in the log and the summary (exit 1, the arm stopped)."""
 
@@ -54,6 +56,34 @@ class StandInRobot:
 
 
 ROBOTS: list[StandInRobot] = []
+
+
+class StandInGripper:
+    """Records franky.Gripper's calls; a move or grasp reaches its width at once, its future not
+    ready while `busy` is set; raises franky's GripperException while `refuse` is set."""
+
+    def __init__(self, address):
+        self.calls: list[tuple] = [("Gripper", address)]
+        self.width = 0.08
+        self.refuse = False
+        self.busy = False
+        GRIPPERS.append(self)
+
+    def _command(self, call: tuple) -> types.SimpleNamespace:
+        if self.refuse:
+            raise sys.modules["franky"].GripperException("Command failed: the gripper is not homed")
+        self.calls.append(call)
+        self.width = call[1]
+        return types.SimpleNamespace(wait=lambda timeout=None: not self.busy)  # franky's BoolFuture
+
+    def move_async(self, width, speed):
+        return self._command(("move_async", width, speed))
+
+    def grasp_async(self, width, speed, force, epsilon_inner=0.005, epsilon_outer=0.005):
+        return self._command(("grasp_async", width, speed, force, epsilon_inner, epsilon_outer))
+
+
+GRIPPERS: list[StandInGripper] = []
 #: The stand-in arm's first joint state, and the move from which every move is refused (None: none).
 HOME: list[float] = [0.0] * 7
 REFUSE_FROM: int | None = None
@@ -68,8 +98,11 @@ def franky(monkeypatch):
     module.Exception = type("Exception", (Exception,), {})
     module.JointMotion = lambda q: ("JointMotion", tuple(q))
     module.JointStopMotion = lambda: ("JointStopMotion",)
+    module.Gripper = StandInGripper
+    module.GripperException = type("GripperException", (Exception,), {})  # not a franky.Exception
     monkeypatch.setitem(sys.modules, "franky", module)
     ROBOTS.clear()
+    GRIPPERS.clear()
     return module
 
 
@@ -182,3 +215,48 @@ def test_five_refused_commands_in_a_row_stop_the_deployment_in_one_line(
     refused = [tick for r in records.cycles for tick, _ in r.get("refused", [])]
     assert len(refused) == 5
     assert replay(log).max_servo_difference == 0
+
+
+def test_the_franka_hand_is_driven_through_frankys_gripper(franky):
+    backend = FrankaBackend("127.0.0.2", realtime=False, gripper=True)
+    backend.connect()
+    (robot,), (hand,) = ROBOTS, GRIPPERS
+    assert hand.calls == [("Gripper", "127.0.0.2")] and backend.read_state().tool == 0.08
+    q = np.zeros(7)
+    for width in (0.08, 0.078, 0.02, 0.02, 0.05, 0.08):
+        assert backend.send(q, width) is None
+    assert hand.calls[1:] == [
+        ("move_async", 0.08, 0.1),  # 0.078 is within 5 mm of it: held
+        ("grasp_async", 0.02, 0.1, 70.0, 0.08, 0.08),  # closing: onto what lies between the fingers
+        ("move_async", 0.05, 0.1),  # opening
+        ("move_async", 0.08, 0.1),
+    ]
+    assert backend.read_state().tool == 0.08 and robot.moves == 1  # the joint target was held
+    for bad in (np.nan, -0.01, 0.09, np.inf):
+        with pytest.raises(InvalidAction, match="gripper width .* not sent"):
+            backend.send(q + 0.1, bad)
+    assert len(hand.calls) == 5 and robot.moves == 1  # neither the width nor the joints were sent
+    hand.refuse = True
+    assert backend.send(q, 0.03) == "franky gripper: Command failed: the gripper is not homed"
+    hand.refuse = False
+    assert backend.send(q, 0.03) is None and hand.calls[-1][:2] == ("grasp_async", 0.03)
+    hand.busy = True  # one hand command at a time: a new width waits until the last one is done
+    assert backend.send(q, 0.06) is None and backend.send(q, 0.07) is None and len(hand.calls) == 6
+    hand.busy = False
+    assert backend.send(q, 0.07) is None and hand.calls[-1] == ("move_async", 0.07, 0.1)
+    backend.close()
+    assert hand.calls[-1] == ("move_async", 0.07, 0.1)  # the hand is left as it is (no call on close)
+    plain = FrankaBackend("127.0.0.2", realtime=False)
+    plain.connect()
+    assert len(GRIPPERS) == 1 and plain.read_state().tool is None
+    assert plain.send(q, 0.02) is None and len(GRIPPERS[0].calls) == 7  # no hand: the width is not sent
+
+
+def test_tsrl_deploy_drives_the_hand_for_a_gripper_task_only(franky, exports, panda_reach):
+    from tsrl.deploy.backends import check_backend, make_backend
+
+    gripper_task = exports("panda_pick_place_gripper", env_id="tsrl/PandaPickPlaceGripper-v0", obs="")
+    for export, gripper in ((gripper_task, True), (panda_reach, False)):
+        backend = make_backend("franka", export, "127.0.0.2", {}, franka_realtime=False)
+        assert isinstance(backend, FrankaBackend) and backend.gripper is gripper
+        check_backend(backend, read_contract(export))  # the hand's arm has the Panda's joints

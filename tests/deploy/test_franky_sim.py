@@ -2,7 +2,8 @@
 in a private network namespace of its own (the `franky_sim` fixture; the code that runs inside is
 tests/deploy/franky_sim_run.py): the conformance test of test_backends.py with the realtime check
 relaxed, a one-episode `tsrl deploy` of a Panda reach export whose log is complete and replays to the
-same commands, and libfranka's default realtime check refused in one line naming --no-franka-realtime.
+same commands, libfranka's default realtime check refused in one line naming --no-franka-realtime, and
+the Franka Hand (franky-sim simulates it) opened, closed by a grasp and opened through FrankaBackend.
 Nothing here depends on how fast the machine is: the checks are on poses, counts and the log.
 Skipped, with the reason, without franky-control and franky-sim (the dev extra) or a network
 namespace (`unshare -n` as root, else `unshare -rn`, a user namespace, and `nsenter` to join it)."""
@@ -200,3 +201,15 @@ def test_libfrankas_realtime_check_is_refused_in_one_line_naming_the_option(fran
     out = franky_sim.run("realtime", HOST)
     (line,) = [line for line in out.splitlines() if line.startswith("realtime required: ")]
     assert "libfranka refuses to run without a realtime kernel" in line and "--no-franka-realtime" in line
+
+
+def test_the_franka_hand_closes_and_opens_through_frankys_gripper(franky_sim):
+    out = franky_sim.run("gripper", HOST)
+    reached = []
+    for line in out.splitlines():
+        if line.startswith("gripper to "):
+            target, rest = line.removeprefix("gripper to ").split(": ", 1)
+            assert "answers ['None']" in rest, line
+            reached.append((float(target), float(rest.rsplit("width ", 1)[1])))
+    assert [target for target, _ in reached] == [0.07, 0.02, 0.07], out
+    assert all(abs(width - target) <= 0.003 + 1e-6 for target, width in reached), out

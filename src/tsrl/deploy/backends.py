@@ -15,6 +15,7 @@ libraries' documented calls, imported when connected; they have not been tried o
 from __future__ import annotations
 
 import collections
+import math
 import time
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
@@ -315,6 +316,11 @@ class UrRtdeBackend:
             self._control.stopScript()
 
 
+#: How long FrankaBackend.close waits for the hand's last command [s] (the hand's full stroke at its
+#: slowest is a few seconds).
+HAND_DONE_S = 10.0
+
+
 class FrankaBackend:
     """A Franka arm over franky-control: joint position motions (untried on hardware; docs/deploy.md).
 
@@ -323,8 +329,20 @@ class FrankaBackend:
     sent is not sent again (the motion already heads there). A command franky refuses (e.g. "Motion
     planner failed") is counted in `failed_commands`, franky's error recovery runs, the next command is
     sent afresh, and `send` returns franky's message: a fault the deploy loop's safety layer handles
-    (tsrl.deploy.safety.RefusedCommands: hold, count, stop after several in a row). State from `robot.current_joint_state`
-    (position, velocity). No objects: a reach task only.
+    (tsrl.deploy.safety.RefusedCommands: hold, count, stop after several in a row). State from
+    `robot.current_joint_state` (position, velocity). No objects: a reach task, or a gripper task
+    whose objects another source measures.
+
+    With `gripper` (a task with a gripper dimension: the Franka Hand, franky's `Gripper` on the same
+    address), the state's `tool` is the hand's opening width `Gripper.width` [m], and a tool command
+    (a target width [m], Controller.tool) that differs from the last one sent by more than
+    `gripper_tolerance` is sent without waiting: opening with `move_async(width, gripper_speed)`,
+    closing with `grasp_async(width, gripper_speed, gripper_force, MAX_WIDTH, MAX_WIDTH)` (the fingers
+    close to the width or onto what lies between them, holding `gripper_force`; any final width is
+    accepted). One hand command at a time: while the last one runs (its future not ready), a new
+    width waits, and the latest is sent once the hand is done. A width that is not finite or outside [0, MAX_WIDTH] is not sent (InvalidAction); one
+    franky refuses is a fault as a refused joint command is. The hand is left as it is on close (a
+    grasped object stays held).
 
     Args:
         realtime: require a realtime kernel, as libfranka does by default (`RealtimeConfig.Enforce`);
@@ -335,16 +353,37 @@ class FrankaBackend:
     joint_names: tuple[str, ...] = panda.JOINT_NAMES
 
     def __init__(
-        self, address: str, period: float = 0.01, relative_dynamics_factor: float = 0.1, realtime: bool = True
+        self,
+        address: str,
+        period: float = 0.01,
+        relative_dynamics_factor: float = 0.1,
+        realtime: bool = True,
+        *,
+        gripper: bool = False,
+        gripper_speed: float = 0.1,
+        gripper_force: float = panda.GRASP_FORCE,
+        gripper_tolerance: float = 0.005,
     ):
         self.address, self.period = address, period
         self.relative_dynamics_factor = relative_dynamics_factor
         self.realtime = realtime
+        self.gripper = gripper
+        for key, value in (("gripper_speed", gripper_speed), ("gripper_force", gripper_force)):
+            if not (math.isfinite(value) and value > 0):
+                raise InvalidConfig(f"{key} must be finite and > 0; got {value}")
+        if not (math.isfinite(gripper_tolerance) and gripper_tolerance >= 0):
+            raise InvalidConfig(f"gripper_tolerance must be finite and >= 0; got {gripper_tolerance}")
+        self.gripper_speed, self.gripper_force = gripper_speed, gripper_force
+        self.gripper_tolerance = gripper_tolerance
         #: Commands franky refused (each followed by its error recovery).
         self.failed_commands = 0
         self._franky: Any = None
         self._robot: Any = None
+        self._hand: Any = None
         self._sent: np.ndarray | None = None
+        self._width_sent: float | None = None
+        self._width_asked: float | None = None  # the last width sent, kept on a refusal: closing or opening
+        self._hand_busy: Any = None  # the future of the hand's last command
         self._next = 0.0
         self._clock0 = 0.0
 
@@ -356,6 +395,7 @@ class FrankaBackend:
                 self.address, realtime_config=config.Enforce if self.realtime else config.Ignore
             )
             self._robot.recover_from_errors()
+            self._hand = self._franky.Gripper(self.address) if self.gripper else None
         except self._franky.RealtimeException as err:
             raise BackendError(
                 f"franka backend: libfranka refuses to run without a realtime kernel ({err}); on the arm's "
@@ -367,7 +407,7 @@ class FrankaBackend:
                 f"franka backend: no answer from {self.address} ({err}); the arm was not moved"
             ) from None
         self._robot.relative_dynamics_factor = self.relative_dynamics_factor
-        self._sent = None
+        self._sent = self._width_sent = self._width_asked = self._hand_busy = None
         self._clock0 = time.perf_counter()
         self._next = self.period
 
@@ -376,14 +416,28 @@ class FrankaBackend:
 
     def read_state(self) -> RobotState:
         state = self._robot.current_joint_state
+        width = float(self._hand.width) if self._hand is not None else None
         return RobotState(
-            self.now(), np.asarray(state.position, np.float64), np.asarray(state.velocity, np.float64), {}
+            self.now(),
+            np.asarray(state.position, np.float64),
+            np.asarray(state.velocity, np.float64),
+            {},
+            width,
         )
 
     def send(self, q: np.ndarray, tool: float | None = None) -> str | None:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != (len(self.joint_names),) or not np.isfinite(q).all():
             raise InvalidAction(f"joint command {q!r} is not {len(self.joint_names)} finite values; not sent")
+        if self._hand is not None and tool is not None and not 0 <= tool <= panda.MAX_WIDTH:  # NaN too
+            raise InvalidAction(f"gripper width {tool!r} is not in [0, {panda.MAX_WIDTH}] m; not sent")
+        why = self._send_joints(q)
+        if self._hand is not None and tool is not None:
+            refused = self._send_width(float(tool))
+            why = refused if why is None else why if refused is None else f"{why}; {refused}"
+        return why
+
+    def _send_joints(self, q: np.ndarray) -> str | None:
         if self._sent is not None and np.array_equal(q, self._sent):
             return None  # a held target: the motion already heads there
         try:
@@ -394,6 +448,28 @@ class FrankaBackend:
             self._robot.recover_from_errors()
             return f"franky: {_one_line(err)}"
         self._sent = q.copy()
+        return None
+
+    def _send_width(self, width: float) -> str | None:
+        """The hand toward `width` [m] (class docstring), unless the last width sent is within the
+        tolerance; franky's refusal (one line) or None."""
+        last, previous = self._width_sent, self._width_asked
+        if last is not None and abs(width - last) <= self.gripper_tolerance:
+            return None  # held: the fingers already head there
+        if self._hand_busy is not None and not self._hand_busy.wait(0.0):
+            return None  # the hand is still at its last command: this width is sent once it is done
+        try:
+            if previous is not None and width < previous:  # closing: onto what lies between the fingers
+                wide = panda.MAX_WIDTH
+                future = self._hand.grasp_async(width, self.gripper_speed, self.gripper_force, wide, wide)
+            else:
+                future = self._hand.move_async(width, self.gripper_speed)
+        except (self._franky.Exception, self._franky.GripperException, RuntimeError) as err:
+            self.failed_commands += 1
+            self._width_sent = None  # the next width is sent afresh
+            return f"franky gripper: {_one_line(err)}"
+        self._width_sent = self._width_asked = width
+        self._hand_busy = future
         return None
 
     def wait(self) -> None:
@@ -407,14 +483,17 @@ class FrankaBackend:
 
     def close(self) -> None:
         """Stops the motion and drops the connection (libfranka closes it with the robot object); a stop
-        franky refuses (the arm stopped on its error already) is followed by its error recovery."""
+        franky refuses (the arm stopped on its error already) is followed by its error recovery. The
+        hand's last command is waited for (HAND_DONE_S at most) before its connection is dropped."""
         if self._robot is not None:
             try:
                 self._robot.move(self._franky.JointStopMotion())
             except (self._franky.Exception, RuntimeError):
                 self._robot.recover_from_errors()
             finally:
-                self._robot = None
+                if self._hand_busy is not None:  # franky must not lose a hand whose command still runs
+                    self._hand_busy.wait(HAND_DONE_S)
+                self._robot = self._hand = self._hand_busy = None
 
 
 def _one_line(err: BaseException) -> str:
@@ -431,11 +510,15 @@ def make_backend(
     name: str, export_dir: Path, address: str | None, options: dict[str, Any], franka_realtime: bool = True
 ) -> RobotBackend:
     """The backend called `name` (BACKENDS); ur and franka need an address; `franka_realtime`:
-    FrankaBackend's `realtime`."""
+    FrankaBackend's `realtime`; franka drives the Franka Hand where the export's task has a gripper."""
     if name == "mujoco":
         return MujocoBackend(export_dir, **options)
     if name in ("ur", "franka"):
         if not address:
             raise InvalidConfig(f"--backend {name} needs --address (the robot's IP address)")
-        return UrRtdeBackend(address) if name == "ur" else FrankaBackend(address, realtime=franka_realtime)
+        if name == "ur":
+            return UrRtdeBackend(address)
+        tool = read_contract(export_dir)["action"]["tool"]
+        gripper = tool is not None and tool["kind"] == "gripper"
+        return FrankaBackend(address, realtime=franka_realtime, gripper=gripper)
     raise InvalidConfig(f"unknown backend {name!r}; accepted: {', '.join(BACKENDS)}")
