@@ -4,9 +4,10 @@ for the loader itself and for each file kind (task, robot, run config.json, expe
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import pytest
 
@@ -131,6 +132,33 @@ def test_a_field_of_a_type_the_loader_does_not_know_is_a_programming_error():
 
     with pytest.raises(TypeError, match=r"cannot load weights: its type dict\[str, float\]"):
         load_table(Mapped, {"weights": {"a": 1.0}})
+
+
+@dataclass(frozen=True)
+class Stats:
+    mean: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Tables:
+    stats: Mapping[str, Stats]
+    notes: Any = None
+
+
+def test_a_mapping_field_takes_any_keys_read_only_and_an_any_field_keeps_the_value():
+    tables = load_table(Tables, {"stats": {"a": {"mean": [1, 2]}}, "notes": {"free": [1, "x"]}})
+    assert tables.stats["a"] == Stats((1.0, 2.0)) and tables.notes == {"free": [1, "x"]}
+    with pytest.raises(TypeError):
+        tables.stats["b"] = Stats(())  # type: ignore[index]
+    for table, message in (
+        ({"stats": [1]}, "x.json: stats must be a table; got [1]"),
+        (
+            {"stats": {"a": {"mean": [float("nan")]}}},
+            "x.json: stats.a.mean[0] must be a finite number; got nan",
+        ),
+        ({"stats": {"a": {"mean": [1], "sd": 1}}}, "x.json: unknown key 'sd' in [stats.a]; accepted: mean"),
+    ):
+        assert str(pytest.raises(InvalidConfig, load_table, Tables, table, source="x.json").value) == message
 
 
 def test_files_are_read_as_toml_with_an_optional_section(tmp_path):

@@ -6,6 +6,8 @@ A dataclass's type hints are its file format:
   `Path` (from a string);
 - `Literal[...]` (one of its values), `X | Y` and `X | None` (None from JSON's null);
 - `tuple[X, ...]` (a list of X), `tuple[X, Y, Z]` (a list of exactly that many);
+- `Mapping[str, X]` (a table of any keys, each value an X; read-only);
+- `Any` (the value as read, unchecked: for a file's free-form descriptive parts);
 - a nested dataclass (a table, e.g. `[goal.position]`, or one of an array of tables).
 
 Keys are checked against the dataclass's fields: an unknown key, a missing required one (a field
@@ -30,6 +32,7 @@ import types
 import typing
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 from .exceptions import InvalidConfig, is_int, is_number
@@ -137,6 +140,12 @@ def _in(where: str) -> str:
 def _value(hint: Any, value: Any, key: str) -> Any:
     """`value` checked (and converted: lists to tuples, ints to floats, tables to dataclasses) as `hint`."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is Any:
+        return value
+    if origin is Mapping:
+        if not (isinstance(value, dict) and all(isinstance(k, str) for k in value)):
+            raise InvalidConfig(f"{key} must be a table; got {value!r}")
+        return MappingProxyType({k: _value(args[1], v, f"{key}.{k}") for k, v in value.items()})
     if origin in (typing.Union, types.UnionType):
         if value is None and _NONE in args:
             return None
@@ -175,7 +184,7 @@ def _fits(hint: Any, value: Any) -> bool:
         return any(type(value) is type(a) for a in typing.get_args(hint))
     if origin is tuple:
         return isinstance(value, list | tuple)
-    if dataclasses.is_dataclass(hint):
+    if dataclasses.is_dataclass(hint) or origin is Mapping:
         return isinstance(value, dict)
     return hint in _SCALARS and _SCALARS[hint][0](value)
 
@@ -186,7 +195,7 @@ def _describe(hint: Any) -> str:
         return "one of " + ", ".join(map(repr, typing.get_args(hint)))
     if origin is tuple:
         return "a list"
-    if dataclasses.is_dataclass(hint):
+    if dataclasses.is_dataclass(hint) or origin is Mapping:
         return "a table"
     return _SCALARS[hint][1] if hint in _SCALARS else repr(hint)
 

@@ -22,7 +22,7 @@ def test_onnx_actions_equal_the_torch_policy_on_1000_observations(algo, tmp_path
     contract = read_contract(out)
     env = exported_env(out, contract)
     observations = task_observations(env, 1000, seed=7)
-    keys = tuple(i["name"] for i in contract["policy"]["inputs"])
+    keys = tuple(i.name for i in contract.policy.inputs)
     policy = OnnxPolicy(out / POLICY, keys)
     onnx = policy.batch(observations)
     torch = torch_actions(model, normalizer, observations)
@@ -39,8 +39,8 @@ def test_onnx_actions_equal_the_torch_policy_on_1000_observations(algo, tmp_path
 
 
 def test_the_contract_describes_the_rows_files_limits_and_normaliser(ur5e_reach):
-    contract = json.loads((ur5e_reach / CONTRACT).read_text())
-    env = exported_env(ur5e_reach, contract)
+    contract = json.loads((ur5e_reach / CONTRACT).read_text())  # the file's own layout
+    env = exported_env(ur5e_reach, read_contract(ur5e_reach))
     assert contract["robot"]["joints"] == list(env.robot.joints)
     assert contract["robot"]["max_joint_speed"] == [np.pi] * 6
     rows = contract["observation"]["rows"]
@@ -77,6 +77,32 @@ def test_the_contract_describes_the_rows_files_limits_and_normaliser(ur5e_reach)
     assert len(stats["observation"]["mean"]) == 15
 
 
+def test_the_contract_is_read_as_a_typed_frozen_record(ur5e_reach):
+    import dataclasses
+
+    from tsrl.deploy.contract import ActionPart, Contract, Row
+    from tsrl.ik.options import IKOptions
+
+    record = read_contract(ur5e_reach)
+    assert isinstance(record, Contract)
+    assert record.robot.max_joint_speed == (np.pi,) * 6 and record.robot.joint_limits[0][0] < 0
+    assert record.observation.rows[0] == Row(0, "position(tcp)", "x", "world", "m")
+    assert record.action.parts[0] == ActionPart(
+        "position(tcp)", (0, 3), step=0.05, low=(-0.9, -0.55, 0.02), high=(-0.15, 0.3, 0.7)
+    )
+    assert record.workspace is not None and record.workspace.part == 0
+    assert isinstance(record.ik.options, IKOptions) and record.ik.options.max_iters == 1
+    assert record.policy.normalizer is not None
+    assert len(record.policy.normalizer.statistics["observation"].mean) == record.observation.dim == 15
+    assert record.task.episode_steps == 50 and record.action.tool is None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        record.robot.joints = ()  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        record.files["policy.onnx"] = "0" * 64  # type: ignore[index]
+    # Code written against the JSON dict reads it as before.
+    assert record["robot"]["joints"] == record.robot.joints and record.get("workspace") is record.workspace
+
+
 def test_the_copies_compile_to_the_training_model(ur5e_reach, panda_pick_place):
     import gymnasium as gym
 
@@ -93,7 +119,7 @@ def test_the_copies_compile_to_the_training_model(ur5e_reach, panda_pick_place):
 def test_a_policy_that_sees_fewer_inputs_exports_only_those(tmp_path):
     out, *_ = build_export(tmp_path / "export", policy_inputs=("observation", "desired_goal"))
     contract = read_contract(out)
-    assert [i["name"] for i in contract["policy"]["inputs"]] == ["observation", "desired_goal"]
+    assert [i.name for i in contract.policy.inputs] == ["observation", "desired_goal"]
     OnnxPolicy(out / POLICY, ("observation", "desired_goal"))  # the file's inputs are those
 
 
@@ -118,12 +144,12 @@ def test_a_task_that_observes_its_previous_actions_exports_them_as_the_last_rows
     from tsrl.envs.observations import PREVIOUS_ACTIONS
 
     contract = read_contract(ur5e_reach_history)
-    observation, k = contract["observation"], contract["action"]["dim"]
-    rows = observation["rows"]
-    assert observation["previous_actions"] == 2
-    [policy_input] = [i for i in contract["policy"]["inputs"] if i["name"] == "observation"]
-    assert observation["dim"] == len(rows) == policy_input["dim"]
-    history = [r for r in rows if r["map"] == PREVIOUS_ACTIONS]
-    assert [r["index"] for r in history] == list(range(len(rows) - 2 * k, len(rows)))
-    assert history[0]["component"] == "action[0] at t-1"
-    assert history[-1]["component"] == f"action[{k - 1}] at t-2"
+    observation, k = contract.observation, contract.action.dim
+    rows = observation.rows
+    assert observation.previous_actions == 2
+    [policy_input] = [i for i in contract.policy.inputs if i.name == "observation"]
+    assert observation.dim == len(rows) == policy_input.dim
+    history = [r for r in rows if r.map == PREVIOUS_ACTIONS]
+    assert [r.index for r in history] == list(range(len(rows) - 2 * k, len(rows)))
+    assert history[0].component == "action[0] at t-1"
+    assert history[-1].component == f"action[{k - 1}] at t-2"

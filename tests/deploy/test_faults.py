@@ -41,7 +41,7 @@ def test_no_command_leaves_the_limits_under_injected_faults(ur5e_reach):
     limiter = controller.limiter
     h, T = backend.period, controller.control_period
     ticks = round(T / h)
-    steps = int(controller.contract["task"]["episode_steps"])
+    steps = controller.contract.task.episode_steps
     low, high = controller.workspace
     far_goal = np.array([-1.5, 0.9, 1.2])  # outside the workspace box on every axis
     reported = {NONFINITE_STATE: 0, GOAL_OUTSIDE_WORKSPACE: 0}

@@ -153,7 +153,7 @@ def panda_reach(exports):
 def deploy_on_stand_in(export, log, monkeypatch, episodes: int = 1, refuse=(), refuse_from=None) -> int:
     """`tsrl deploy` of `export` on the stand-in franky (at the contract's home) with the moves in
     `refuse` refused, and every one from `refuse_from` on."""
-    monkeypatch.setattr(sys.modules[__name__], "HOME", list(read_contract(export)["robot"]["home_q"]))
+    monkeypatch.setattr(sys.modules[__name__], "HOME", list(read_contract(export).robot.home_q))
     monkeypatch.setattr(sys.modules[__name__], "REFUSE_FROM", refuse_from)
     refused = set(refuse)
     original = StandInRobot.__init__

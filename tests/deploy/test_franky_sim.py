@@ -175,8 +175,8 @@ def test_a_deploy_on_franky_sim_logs_every_step_and_replays_to_the_same_commands
     cycles = [r for r in records.cycles if r["type"] == "cycle"]
     assert [r["step"] for r in cycles] == list(range(50)) and episode["steps"] == 50
     contract = read_contract(export)
-    limits = np.array(contract["robot"]["joint_limits"])
-    ticks = round(contract["task"]["control_period_s"] / 0.01)  # FrankaBackend's 10 ms servo period
+    limits = np.array(contract.robot.joint_limits)
+    ticks = round(contract.task.control_period_s / 0.01)  # FrankaBackend's 10 ms servo period
     assert all(len(r["servo"]) == len(r["servo_t"]) == ticks for r in cycles)
     q = np.array([r["q"] for r in cycles])
     servo = np.concatenate([np.array(r["servo"], np.float64) for r in cycles])
@@ -186,7 +186,7 @@ def test_a_deploy_on_franky_sim_logs_every_step_and_replays_to_the_same_commands
     for joints in (q, servo):  # within the contract's joint limits
         assert (joints >= limits[:, 0]).all() and (joints <= limits[:, 1]).all()
     # Each servo command moves a joint by at most its speed limit times the 10 ms servo period.
-    step = np.array(contract["robot"]["max_joint_speed"]) * 0.01
+    step = np.array(contract.robot.max_joint_speed) * 0.01
     assert (np.abs(np.diff(servo, axis=0)) <= step + 1e-12).all()
     # The log is the deploy's whole record: recomputed from it, every command comes out the same.
     again = replay(log)

@@ -40,7 +40,7 @@ def test_a_mesh_arm_exports_its_meshes_and_compiles_to_the_training_model(fetch_
     assert "shoulder_pan_link_collision.stl" in meshes and len(meshes) > 10
     contract = read_contract(fetch_export)
     # the unlimited roll joints are bounded by their servos' range (+-2 pi), as in training
-    limits = np.array(contract["robot"]["joint_limits"])
+    limits = np.array(contract.robot.joint_limits)
     assert np.isfinite(limits).all() and np.allclose(limits[2], [-2 * np.pi, 2 * np.pi])
     exported = exported_env(fetch_export, contract)
     trained = gym.make(TASK_ENV_ID, task=str(FETCH_REACH)).unwrapped

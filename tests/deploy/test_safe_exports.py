@@ -122,6 +122,43 @@ def test_an_altered_contract_and_unusable_limits_are_refused_in_one_line(run_and
     assert not (tmp_path / "x.jsonl").exists()
 
 
+def test_a_contract_whose_keys_or_types_the_record_does_not_take_is_refused_in_one_line(
+    run_and_export, tmp_path, capsys
+):
+    _, export = run_and_export
+    cases = {  # each rehashed: the typed record (tsrl.configs' loader) refuses it, naming file and key
+        "joint name": (
+            lambda c: c["robot"]["joints"].__setitem__(0, 5),
+            "contract.json: robot.joints[0] must be a string; got 5 (export the run again)",
+        ),
+        "steps": (
+            lambda c: c["task"].__setitem__("episode_steps", 50.5),
+            "contract.json: task.episode_steps must be an integer; got 50.5",
+        ),
+        "tool kind": (
+            lambda c: c["action"].__setitem__(
+                "tool", {"column": 3, "actuator": "g", "kind": "vacuum", "rule": ""}
+            ),
+            "contract.json: action.tool.kind = 'vacuum'; accepted: 'suction', 'gripper'",
+        ),
+        "unknown key": (
+            lambda c: c["robot"].__setitem__("max_joint_sped", [1.0] * 6),
+            "contract.json: unknown key 'max_joint_sped' in [robot]; accepted: name, joints,",
+        ),
+        "missing key": (
+            lambda c: c["task"].pop("scene"),
+            "contract.json: missing key 'scene' in [task]",
+        ),
+    }
+    for name, (edit, words) in cases.items():
+        folder = _edited(export, tmp_path, name.replace(" ", "_"), edit, rehash=True)
+        with pytest.raises(ContractError, match=re.escape(words)):
+            read_contract(folder)
+        assert main(["deploy", str(folder), "--log", str(tmp_path / "x.jsonl")]) == 2
+        assert words in one_error_line(capsys), name
+    assert not (tmp_path / "x.jsonl").exists()
+
+
 def test_a_normaliser_changed_after_its_checkpoint_was_written_is_refused_at_export(
     run_and_export, tmp_path, capsys
 ):

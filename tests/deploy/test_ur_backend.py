@@ -71,7 +71,7 @@ def stand_in_modules(robot: Robot, answer: bool = True) -> dict[str, types.Modul
 
 def test_the_ur_backend_servos_at_its_period_paces_each_tick_and_stops_on_close(ur5e_reach, monkeypatch):
     controller = Controller.from_export(ur5e_reach, ControllerOptions(servo_period=0.002))
-    home = np.array(controller.contract["robot"]["home_q"])
+    home = np.array(controller.contract.robot.home_q)
     robot = Robot(home)
     for name, module in stand_in_modules(robot).items():
         monkeypatch.setitem(sys.modules, name, module)

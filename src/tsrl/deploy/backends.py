@@ -26,7 +26,7 @@ import numpy as np
 from ..assets import panda, ur5e
 from ..exceptions import InvalidAction, InvalidConfig, TsrlError
 from ..kinematics import arm_dof_indices, name_to_id
-from .contract import read_contract
+from .contract import Contract, read_contract
 from .exported import exported_env
 
 
@@ -78,9 +78,9 @@ class RobotBackend(Protocol):
         """Stops the arm's servoing and closes the connection."""
 
 
-def check_backend(backend: RobotBackend, contract: dict[str, Any]) -> None:
+def check_backend(backend: RobotBackend, contract: Contract) -> None:
     """Raises InvalidConfig (one line) unless the backend's joints are the contract's, in order."""
-    expected = list(contract["robot"]["joints"])
+    expected = list(contract.robot.joints)
     actual = list(backend.joint_names)
     if actual != expected:
         raise InvalidConfig(
@@ -518,7 +518,7 @@ def make_backend(
             raise InvalidConfig(f"--backend {name} needs --address (the robot's IP address)")
         if name == "ur":
             return UrRtdeBackend(address)
-        tool = read_contract(export_dir)["action"]["tool"]
-        gripper = tool is not None and tool["kind"] == "gripper"
+        tool = read_contract(export_dir).action.tool
+        gripper = tool is not None and tool.kind == "gripper"
         return FrankaBackend(address, realtime=franka_realtime, gripper=gripper)
     raise InvalidConfig(f"unknown backend {name!r}; accepted: {', '.join(BACKENDS)}")

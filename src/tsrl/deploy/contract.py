@@ -13,7 +13,9 @@ An export folder (`tsrl export RUN --out DIR`, tsrl.deploy.export)::
 keys, written canonically: `contract_digest`); `read_contract` refuses a folder where a file is
 missing or differs, an altered contract, a contract written by another major version of tsrl, and
 limits or normaliser statistics a safety layer or a policy cannot use (`check_values`: finite,
-positive, ordered). Nothing here imports torch or stable-baselines3.
+positive, ordered), and returns the contract as a typed, frozen record (`Contract`, built by the
+project's one loader, tsrl.configs: every key and type checked, one line naming the file and key).
+Nothing here imports torch or stable-baselines3.
 """
 
 from __future__ import annotations
@@ -21,12 +23,15 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Literal
 
+from ..configs import load_table
 from ..envs.observations import PREVIOUS_ACTIONS
 from ..exceptions import InvalidConfig
+from ..ik.options import IKOptions
 from ..taskmaps import (
     AccumulatedCollisions,
     Distance,
@@ -62,6 +67,258 @@ _WXYZ = ("w", "x", "y", "z")
 
 class ContractError(InvalidConfig):
     """An export folder that cannot be used: a file missing or altered, a contract of another version."""
+
+
+class Record:
+    """A part of the contract. Its fields are the contract.json keys; `record["key"]` and
+    `record.get("key")` read them as the JSON dict did (for code written against the dict)."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return getattr(self, key) if key in self.__dataclass_fields__ else default
+
+
+@dataclass(frozen=True)
+class TcpFrame(Record):
+    frame: str
+    body: str
+    pos_in_body_m: tuple[float, float, float]
+    quat_in_body_wxyz: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class BaseFrame(Record):
+    body: str
+    pos_in_world_m: tuple[float, float, float]
+    quat_in_world_wxyz: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class ContractRobot(Record):
+    """The arm: joints (in the order of every joint vector), units, limits the safety layer enforces."""
+
+    name: str
+    joints: tuple[str, ...]
+    joint_units: tuple[str, ...]
+    joint_limits: tuple[tuple[float, float], ...]
+    """[lower, upper] per joint [rad or m]."""
+    home_q: tuple[float, ...]
+    tcp: TcpFrame
+    base_frame: BaseFrame
+    actuators: tuple[str, ...]
+    suction: str | None
+    max_joint_speed: tuple[float, ...]
+    max_joint_acceleration: tuple[float, ...]
+    limits_source: str
+
+
+@dataclass(frozen=True)
+class EnvKwargs(Record):
+    obs: str
+    action: str | None
+
+
+@dataclass(frozen=True)
+class ContractObject(Record):
+    body: str
+    state: str
+
+
+@dataclass(frozen=True)
+class ContractTask(Record):
+    name: str
+    frame: Literal["world", "base"]
+    file: str
+    scene: str
+    """The scene's MJCF file, relative to the export folder."""
+    robot_file: str
+    env_kwargs: EnvKwargs
+    control_period_s: float
+    physics_timestep_s: float
+    episode_steps: int
+    objects: tuple[ContractObject, ...]
+
+
+@dataclass(frozen=True)
+class Row(Record):
+    """One row of the observation or the goal: its index, map, component, frame and unit."""
+
+    index: int
+    map: str
+    component: str
+    frame: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class ContractObservation(Record):
+    spec: str
+    dim: int
+    previous_actions: int
+    rows: tuple[Row, ...]
+
+
+@dataclass(frozen=True)
+class Tolerances(Record):
+    position_m: float | None
+    orientation_deg: float | None
+
+
+@dataclass(frozen=True)
+class ContractGoal(Record):
+    map: str
+    dim: int
+    rows: tuple[Row, ...]
+    markers: tuple[str, ...]
+    tolerances: Tolerances
+    reward: str
+    sampler: Any
+    """The task's goal sampler as the task file gives it (descriptive; the task.toml copy is used)."""
+
+
+@dataclass(frozen=True)
+class ActionPart(Record):
+    """One part of the action: its map and columns; a relative part's `step`, an absolute part's
+    `center` and `half_range`; the TCP target's box (`low`, `high`) where it has one."""
+
+    map: str
+    columns: tuple[int, int]
+    step: float | None = None
+    center: tuple[float, ...] | None = None
+    half_range: tuple[float, ...] | None = None
+    low: tuple[float, ...] | None = None
+    high: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class HeldMap(Record):
+    map: str
+    value: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SuctionColumn(Record):
+    column: int
+    on_above: float
+
+
+@dataclass(frozen=True)
+class Tool(Record):
+    """The action's tool dimension: its column, actuator and rule (TaskInterface.tool)."""
+
+    column: int
+    actuator: str
+    kind: Literal["suction", "gripper"]
+    rule: str
+    width_range_m: tuple[float, float] | None = None
+    measured: str | None = None
+
+
+@dataclass(frozen=True)
+class ContractAction(Record):
+    dim: int
+    mode: str
+    range: tuple[float, float]
+    parts: tuple[ActionPart, ...]
+    hold: tuple[HeldMap, ...]
+    suction: SuctionColumn | None
+    tool: Tool | None
+    joint_step_rad: float | None
+
+
+@dataclass(frozen=True)
+class Workspace(Record):
+    """The TCP target's box [m] in the world frame, and the action part that sets the target."""
+
+    part: int
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+    frame: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class ContractIK(Record):
+    map: str
+    options: IKOptions
+
+
+@dataclass(frozen=True)
+class PolicyInput(Record):
+    name: str
+    dim: int
+    dtype: str
+
+
+@dataclass(frozen=True)
+class PolicyOutput(Record):
+    name: str
+    dim: int
+    dtype: str
+    range: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Statistics(Record):
+    mean: tuple[float, ...]
+    var: tuple[float, ...]
+    count: float
+
+
+@dataclass(frozen=True)
+class Normalizer(Record):
+    applied: str
+    rule: str
+    epsilon: float
+    clip: float
+    statistics: Mapping[str, Statistics]
+
+
+@dataclass(frozen=True)
+class ContractPolicy(Record):
+    file: str
+    algo: str
+    inputs: tuple[PolicyInput, ...]
+    output: PolicyOutput
+    normalizer: Normalizer | None
+
+
+@dataclass(frozen=True)
+class Contract(Record):
+    """contract.json as a typed, frozen record (`read_contract`; the keys are the fields)."""
+
+    format: str
+    contract_version: int
+    tsrl_version: str
+    frames: str
+    robot: ContractRobot
+    task: ContractTask
+    observation: ContractObservation
+    goal: ContractGoal
+    action: ContractAction
+    workspace: Workspace | None
+    ik: ContractIK | None
+    policy: ContractPolicy
+    run: Any
+    """The run it was exported from (folder, checkpoint, env steps, config), or None (descriptive)."""
+    files: Mapping[str, str]
+    """sha256 of every other file of the export folder, by its path in the folder."""
+    sha256: str
+
+
+def load_contract(table: dict[str, Any], where: str) -> Contract:
+    """The typed record of a contract's table (as JSON gives it); ContractError (one line naming
+    `where` and the key) for a key that is unknown or missing or a value of the wrong type."""
+    try:
+        return load_table(Contract, table, source=where)
+    except InvalidConfig as err:
+        raise ContractError(f"{err} (export the run again)") from None
 
 
 def sha256(path: Path) -> str:
@@ -232,14 +489,16 @@ def _units(units: tuple[str, ...], n: int) -> tuple[str, ...]:
     return units if len(units) == n else ("rad",) * n
 
 
-def read_contract(export_dir: Path | str) -> dict[str, Any]:
-    """The contract of an export folder, after checking its version and every file's sha256.
+def read_contract(export_dir: Path | str) -> Contract:
+    """The contract of an export folder (a typed, frozen record), after checking its version and
+    every file's sha256.
 
     Raises:
         ContractError: no contract.json, not a tsrl contract, another major version of tsrl or
             another contract layout, a contract altered since export, unusable limits or normaliser
-            statistics (check_values), a file it lists missing or with another sha256 (one line
-            naming the file and what was expected).
+            statistics (check_values), a key or value the record does not take (load_contract), a
+            file it lists missing or with another sha256 (one line naming the file and what was
+            expected).
     """
     from .. import __version__
 
@@ -277,11 +536,12 @@ def read_contract(export_dir: Path | str) -> dict[str, Any]:
     files = contract.get("files")
     if not isinstance(files, dict) or POLICY not in files:
         raise ContractError(f"{path}: 'files' must map every file of the export to its sha256")
-    for name, expected in files.items():
+    record = load_contract(contract, str(path))
+    for name, expected in record.files.items():
         file = folder / name
         if not file.is_file():
             raise ContractError(f"{file}: missing; the contract lists it with sha256 {expected}")
         actual = sha256(file)
         if actual != expected:
             raise ContractError(f"{file}: sha256 {actual} differs from the contract's {expected}")
-    return contract
+    return record

@@ -41,7 +41,7 @@ from ..envs.interface import TaskInterface
 from ..envs.randomization import Randomizer
 from ..exceptions import InvalidConfig
 from ..kinematics import arm_dof_indices, arm_qpos_indices, name_to_id
-from .contract import POLICY, read_contract
+from .contract import POLICY, Contract, read_contract
 from .exported import exported_interface
 from .policy import OnnxPolicy
 from .safety import COMMAND_REFUSED, JOINT_LIMIT, JointLimiter
@@ -127,17 +127,17 @@ class Controller:
     """
 
     def __init__(
-        self, folder: Path, contract: dict[str, Any], interface: TaskInterface, options: ControllerOptions
+        self, folder: Path, contract: Contract, interface: TaskInterface, options: ControllerOptions
     ):
         self.folder, self.contract, self.options = folder, contract, options
         #: The run's task-space interface (step plan, goal, action map and tool, previous actions, IK).
         self.interface = interface
         model = self.model = interface.model
-        robot = contract["robot"]
+        robot = contract.robot
         #: Joint names in the order of every joint vector the controller reads and writes.
-        self.joint_names: tuple[str, ...] = tuple(robot["joints"])
+        self.joint_names: tuple[str, ...] = robot.joints
         self.n = len(self.joint_names)
-        self.control_period: float = float(contract["task"]["control_period_s"])
+        self.control_period: float = contract.task.control_period_s
         self.servo_period: float = float(options.servo_period or model.opt.timestep)
         self.max_state_age = options.max_state_age or self.control_period / 2
         self.data = mujoco.MjData(model)
@@ -148,9 +148,8 @@ class Controller:
         for obj in interface.task.objects:
             joint = model.body_jntadr[name_to_id(model, "body", obj.body)]
             self._objects[obj.body] = (int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint]))
-        policy = contract["policy"]
-        self.policy = OnnxPolicy(folder / POLICY, tuple(i["name"] for i in policy["inputs"]))
-        limits = np.asarray(robot["joint_limits"], dtype=np.float64)
+        self.policy = OnnxPolicy(folder / POLICY, tuple(i.name for i in contract.policy.inputs))
+        limits = np.asarray(robot.joint_limits, dtype=np.float64)
         unlimited = [
             j for j, (lo, hi) in zip(self.joint_names, limits) if not (np.isfinite(lo) and np.isfinite(hi))
         ]
@@ -163,26 +162,26 @@ class Controller:
         self.limiter = JointLimiter(
             limits[:, 0] + options.joint_margin,
             limits[:, 1] - options.joint_margin,
-            np.asarray(robot["max_joint_speed"]) * scale,
-            np.asarray(robot["max_joint_acceleration"]) * scale,
+            np.asarray(robot.max_joint_speed) * scale,
+            np.asarray(robot.max_joint_acceleration) * scale,
             self.servo_period,
             self.control_period,
             options.ramp,
         )
-        ws = contract["workspace"]
+        ws = contract.workspace
         self.workspace: tuple[np.ndarray, np.ndarray] | None = (
-            (np.asarray(ws["low"], dtype=np.float64), np.asarray(ws["high"], dtype=np.float64))
-            if ws
+            (np.asarray(ws.low, dtype=np.float64), np.asarray(ws.high, dtype=np.float64))
+            if ws is not None
             else None
         )
         # The TCP position part: its action columns, IK-target rows and step, to report workspace clips.
         self._tcp_part: tuple[slice, slice, float] | None = None
         ik_map = interface.action_map.ik_map
-        if ws and ik_map is not None:
-            part = contract["action"]["parts"][ws["part"]]
-            if part.get("step") is not None:  # a relative part: what the policy asked is y + step a
-                rows = list(ik_map.slices.values())[ws["part"]]
-                self._tcp_part = (slice(*part["columns"]), rows, float(part["step"]))
+        if ws is not None and ik_map is not None:
+            part = contract.action.parts[ws.part]
+            if part.step is not None:  # a relative part: what the policy asked is y + step a
+                rows = list(ik_map.slices.values())[ws.part]
+                self._tcp_part = (slice(*part.columns), rows, part.step)
         self._alpha = math.exp(-self.control_period / options.action_filter) if options.action_filter else 0.0
         self._filtered: np.ndarray | None = None
         self._goal = np.zeros(interface.goal.dim)
@@ -368,7 +367,7 @@ class Controller:
     @property
     def suction(self) -> bool:
         """The suction command (on) of the last policy step (False without a suction cup)."""
-        return bool(self.contract["action"]["suction"]) and self._tool == 1.0
+        return self.contract.action.suction is not None and self._tool == 1.0
 
     @property
     def tool(self) -> float | None:
@@ -381,7 +380,7 @@ class Controller:
         ctrl = self.interface.tool_ctrl
         if ctrl is None:
             return None
-        if self.contract["action"]["suction"]:
+        if self.contract.action.suction is not None:
             return 0.0
         data = mujoco.MjData(self.model)
         self.interface.bound_robot.reset_to_home(self.model, data)

@@ -49,10 +49,12 @@ from .contract import (
     POLICY,
     ROBOT,
     TASK,
+    Contract,
     check_normalizer_statistics,
     check_values,
     contract_digest,
     describe_rows,
+    load_contract,
     previous_action_rows,
     sha256,
 )
@@ -175,8 +177,9 @@ def export_policy(
         contract = json.loads(json.dumps(contract))  # as a reader will see it
         contract["sha256"] = contract_digest(contract)
         check_values(contract, f"the export of {task.name!r}")
+        record = load_contract(contract, f"the export of {task.name!r}")  # as read_contract reads it
         (tmp / CONTRACT).write_text(contract_text(contract))
-        _check(tmp, contract, env, model, normalizer, keys)
+        _check(tmp, record, env, model, normalizer, keys)
     env.close()
     return out
 
@@ -279,7 +282,7 @@ def task_observations(env: TaskEnv, n: int, seed: int = 0) -> dict[str, np.ndarr
 
 def _check(
     folder: Path,
-    contract: dict[str, Any],
+    contract: Contract,
     env: TaskEnv,
     model: BaseAlgorithm,
     normalizer: VecNormalize | None,
@@ -292,7 +295,7 @@ def _check(
     differs = model_difference(again.model, env.model)
     if differs is not None:
         raise InvalidConfig(
-            f"the copies of {contract['task']['scene']} compile to another model than the training scene "
+            f"the copies of {contract.task.scene} compile to another model than the training scene "
             f"(its {differs} differs: a file it reads was not copied); give the task a scene whose files "
             "are named in its MJCF (includes, meshdir/texturedir)"
         )

@@ -23,31 +23,30 @@ from ..envs.observations import OBS_PRESETS
 from ..envs.scenes import load_scene
 from ..envs.tasks import Task
 from ..robots import load_robot
-from .contract import ROBOT, TASK, ContractError
+from .contract import ROBOT, TASK, Contract, ContractError
 
 #: The limits every contract records for each controlled joint.
 LIMIT_KEYS = ("max_joint_speed", "max_joint_acceleration")
 
 
-def exported_env(folder: Path | str, contract: dict[str, Any], scene: Path | str | None = None) -> TaskEnv:
+def exported_env(folder: Path | str, contract: Contract, scene: Path | str | None = None) -> TaskEnv:
     """The run's environment from an export folder's copies (`scene`: another model file of the same
     arm instead of the exported scene, e.g. for a MuJoCo backend)."""
     task = _folder_task(folder, contract, scene)
-    kwargs = contract["task"]["env_kwargs"]
-    env = TaskEnv(task, obs=kwargs.get("obs"), action=kwargs.get("action"))
+    kwargs = contract.task.env_kwargs
+    env = TaskEnv(task, obs=kwargs.obs, action=kwargs.action)
     check_env_matches(env, contract)
     return env
 
 
-def exported_interface(folder: Path | str, contract: dict[str, Any]) -> TaskInterface:
+def exported_interface(folder: Path | str, contract: Contract) -> TaskInterface:
     """The run's task-space interface (step plan, goal, action map, IK) on the export's own model, as
     the training environment built it (its `ik_iterations` from the contract's IK options)."""
-    kwargs = contract["task"]["env_kwargs"]
-    task = _folder_task(folder, contract).with_overrides(kwargs.get("obs"), kwargs.get("action"), None)
+    kwargs = contract.task.env_kwargs
+    task = _folder_task(folder, contract).with_overrides(kwargs.obs, kwargs.action, None)
     model = load_scene(task)
     robot = load_robot(task.robot_path).bind(model)
-    ik = contract.get("ik")
-    iterations = int(ik["options"]["max_iters"]) if ik is not None else 1
+    iterations = contract.ik.options.max_iters if contract.ik is not None else 1
     interface = TaskInterface(
         task, model, robot, OBS_PRESETS.get(task.observation, task.observation), iterations
     )
@@ -55,29 +54,29 @@ def exported_interface(folder: Path | str, contract: dict[str, Any]) -> TaskInte
     return interface
 
 
-def _folder_task(folder: Path | str, contract: dict[str, Any], scene: Path | str | None = None) -> Task:
+def _folder_task(folder: Path | str, contract: Contract, scene: Path | str | None = None) -> Task:
     """The folder's task.toml with its scene (or `scene`) and robot the folder's copies."""
     folder = Path(folder).resolve()
     task = load_task(folder / TASK)
-    scene_file = Path(scene).resolve() if scene is not None else folder / contract["task"]["scene"]
+    scene_file = Path(scene).resolve() if scene is not None else folder / contract.task.scene
     return dataclasses.replace(task, scene=str(scene_file), robot=str(folder / ROBOT))
 
 
-def check_env_matches(env: TaskEnv | TaskInterface, contract: dict[str, Any]) -> None:
+def check_env_matches(env: TaskEnv | TaskInterface, contract: Contract) -> None:
     """The environment has the contract's joints, control period, observation, goal and action.
 
     Raises:
         ContractError: one line naming what differs and what the contract says.
     """
-    robot, task = contract["robot"], contract["task"]
+    tool = contract.action.tool
     expected: list[tuple[str, Any, Any]] = [
-        ("robot.joints", list(env.robot.joints), robot["joints"]),
-        ("task.control_period_s", env.task.control_dt, task["control_period_s"]),
-        ("observation.spec", env.obs_map.spec, contract["observation"]["spec"]),
-        ("observation.dim", env.obs_dim, contract["observation"]["dim"]),
-        ("goal.dim", env.goal.dim, contract["goal"]["dim"]),
-        ("action.dim", env.action_map.dim, contract["action"]["dim"]),
-        ("action.tool.kind", _tool_kind(env), (contract["action"]["tool"] or {}).get("kind")),
+        ("robot.joints", list(env.robot.joints), list(contract.robot.joints)),
+        ("task.control_period_s", env.task.control_dt, contract.task.control_period_s),
+        ("observation.spec", env.obs_map.spec, contract.observation.spec),
+        ("observation.dim", env.obs_dim, contract.observation.dim),
+        ("goal.dim", env.goal.dim, contract.goal.dim),
+        ("action.dim", env.action_map.dim, contract.action.dim),
+        ("action.tool.kind", _tool_kind(env), tool.kind if tool is not None else None),
     ]
     for key, actual, wanted in expected:
         if actual != wanted and not (isinstance(actual, float) and math.isclose(actual, wanted)):

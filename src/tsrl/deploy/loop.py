@@ -255,7 +255,7 @@ def _episode(
     controller.reset(state.q, backend.now(), goal)
     if log is not None:
         log.start(index, seed, backend.now(), state.q, goal)
-    steps = int(controller.contract["task"]["episode_steps"])
+    steps = controller.contract.task.episode_steps
     result = EpisodeResult(seed, False, None, math.nan, steps)
     h = backend.period
     for step in range(steps):
