@@ -149,7 +149,7 @@ def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
     export_policy(model, venv, cfg, out, None, None, None)
     contract = read_contract(out)
     observations = task_observations(exported_env(out, contract), 500, seed=7)
-    keys = tuple(i["name"] for i in contract["policy"]["inputs"])
+    keys = tuple(i.name for i in contract.policy.inputs)
     onnx = OnnxPolicy(out / POLICY, keys).batch(observations)
     np.testing.assert_allclose(onnx, torch_actions(model, venv, observations), rtol=0, atol=TOLERANCE)
     obs = venv.normalize_obs(observations)
