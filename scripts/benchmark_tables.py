@@ -130,10 +130,10 @@ def with_table(text: str, name: str, table: Table) -> str:
 
 def index_table(folders: list[Path]) -> list[str]:
     """docs/results/benchmarks/README.md's index: per data folder its doc, script, commit and load (the
-    whole command is in the folder's meta.json, linked: the commands alone would pass the docs' 30,000
+    whole command is in the folder's meta.json: the commands alone would pass the docs' 30,000
     characters a page)."""
     lines = [
-        "| data | shown in | script (command: meta.json) | commit | load average at start (1 min) |",
+        "| data | shown in | script (the whole command: the folder's meta.json) | commit | load average at start (1 min) |",
         "| --- | --- | --- | --- | --- |",
     ]
     for folder in folders:
@@ -146,9 +146,9 @@ def index_table(folders: list[Path]) -> list[str]:
         commit_text = f"`{commit[:7]}`" if re.fullmatch(r"[0-9a-f]{40}", commit) else commit
         data = data_path(folder)
         link = name if data.startswith("docs/results/benchmarks/") else f"../../../{data}"
+        shown = Path(doc).parent.name if Path(doc).name == "README.md" else Path(doc).name
         lines.append(
-            f"| [{name}]({link}/) | [{doc}](../../../{doc}) | [`{meta['script']}`]({link}/meta.json) "
-            f"| {commit_text} | {load_text} |"
+            f"| [{name}]({link}/) | [{shown}](../../../{doc}) | `{meta['script']}` | {commit_text} | {load_text} |"
         )
     return lines
 
