@@ -110,16 +110,22 @@ def test_an_altered_contract_and_unusable_limits_are_refused_in_one_line(run_and
             "normaliser mean of 'observation' holds -4.9e+307",
         ),
     }
+    _each_refused(cases, export, tmp_path, capsys)
+    older = _edited(export, tmp_path, "v1", lambda c: c.__setitem__("contract_version", 1), rehash=False)
+    assert main(["deploy", str(older), "--log", str(tmp_path / "x.jsonl")]) == 2
+    assert "contract_version 1; this tsrl reads 2 (export the run again)" in one_error_line(capsys)
+    assert not (tmp_path / "x.jsonl").exists()
+
+
+def _each_refused(cases: dict, export, tmp_path, capsys) -> None:
+    """Each case's edit (rehashed) is refused by read_contract and by `tsrl deploy` (exit 2) in one line
+    holding its words."""
     for name, (edit, words) in cases.items():
         folder = _edited(export, tmp_path, name.replace(" ", "_"), edit, rehash=True)
         with pytest.raises(ContractError, match=re.escape(words)):
             read_contract(folder)
         assert main(["deploy", str(folder), "--log", str(tmp_path / "x.jsonl")]) == 2
         assert words in one_error_line(capsys), name
-    older = _edited(export, tmp_path, "v1", lambda c: c.__setitem__("contract_version", 1), rehash=False)
-    assert main(["deploy", str(older), "--log", str(tmp_path / "x.jsonl")]) == 2
-    assert "contract_version 1; this tsrl reads 2 (export the run again)" in one_error_line(capsys)
-    assert not (tmp_path / "x.jsonl").exists()
 
 
 def test_a_contract_whose_keys_or_types_the_record_does_not_take_is_refused_in_one_line(
@@ -150,12 +156,7 @@ def test_a_contract_whose_keys_or_types_the_record_does_not_take_is_refused_in_o
             "contract.json: missing key 'scene' in [task]",
         ),
     }
-    for name, (edit, words) in cases.items():
-        folder = _edited(export, tmp_path, name.replace(" ", "_"), edit, rehash=True)
-        with pytest.raises(ContractError, match=re.escape(words)):
-            read_contract(folder)
-        assert main(["deploy", str(folder), "--log", str(tmp_path / "x.jsonl")]) == 2
-        assert words in one_error_line(capsys), name
+    _each_refused(cases, export, tmp_path, capsys)
     assert not (tmp_path / "x.jsonl").exists()
 
 
