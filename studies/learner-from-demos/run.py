@@ -6,10 +6,11 @@ data/runs.csv; `table` prints the study's table from that file.
     python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
-seed 0), 8,000 gradient steps; ref100 / ref10: `--learner fast` with the same demonstrations as it is
-from commit ab08374 on (the clone kept as a reference the critic chooses against, pre-registration 3);
-fast100 / fast10: the `--learner fast` of commits a6205d2-6840ec2 (pre-registration 2), whose rows are
-kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
+seed 0), 8,000 gradient steps; lcb100 / lcb10: `--learner fast` with the same demonstrations as it is
+now (the clone trained as BC's and kept as a reference; the actor acts only where the critic's lowest
+head for it is above its highest for the clone, pre-registration 4); ref100 / ref10: the `--learner
+fast` of commits ab08374-a5747a7 (pre-registration 3), fast100 / fast10: that of commits
+a6205d2-6840ec2 (pre-registration 2), whose rows are kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
 is not a screen: one seed, to find a bug or a cause before the pre-registered runs).
 Every evaluation has 100 episodes on the run's fixed unseen seeds. Per run: final = mean of the last
 three evaluations; fresh = success of the final policy on 100 fresh seeds; to95 = the env steps from
@@ -76,15 +77,16 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("ref"):
+    if arm.startswith("lcb"):
         agent = AgentConfig(learner="fast", demos=demo_cfg)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=BUDGETS[task], eval_freq=EVAL_FREQ.get(task, 2_500),
             eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("fast"):
-        raise SystemExit(f"arm {arm!r} is --learner fast of commits a6205d2-6840ec2: run it at one of them")
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, ref100, ref10")
+    for old, commits in (("fast", "a6205d2-6840ec2"), ("ref", "ab08374-a5747a7")):
+        if arm.startswith(old):
+            raise SystemExit(f"arm {arm!r} is --learner fast of commits {commits}: run it at one of them")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, lcb100, lcb10")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -130,7 +132,7 @@ def commit() -> str:
 
 
 def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
-    n = int(arm.removeprefix("bc").removeprefix("ref").removeprefix("fast"))
+    n = int(arm.removeprefix("bc").removeprefix("lcb"))
     demos = demo_file(out, task, n)
     done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
     for seed in seeds:
@@ -199,11 +201,11 @@ TARGETS = {
 
 
 #: The learner arms and the pre-registration whose rules they are judged by (README).
-LEARNER_ARMS = {"fast": "2", "ref": "3"}
+LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4"}
 
 
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registrations 2 and 3) for each task and learner arm."""
+    """The pre-registered rules (README, pre-registrations 2-4) for each task and learner arm."""
     rows = read_rows()
     print(
         "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "

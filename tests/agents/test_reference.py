@@ -1,7 +1,8 @@
-"""The fast learner's reference (IBRL, tsrl.agents.reference, issue 55): per row, the proposal whose
-smaller twin-critic value is higher is taken, in acting (predict, and so evaluation), in the TD
-target, and in the exported policy; the reference stays the clone through training and checkpoints;
-the normaliser keeps the demonstrations' statistics."""
+"""The fast learner's reference (IBRL, tsrl.agents.reference, issue 55): per row, the actor's proposal
+is taken only where its smallest twin-critic value is above the reference's largest, else the
+reference's, in acting (predict, and so evaluation), in the TD target, and in the exported policy; the
+reference is a BC clone with dropout (off when it acts) and stays the clone through training and
+checkpoints; the normaliser keeps the demonstrations' statistics."""
 
 from __future__ import annotations
 
@@ -37,18 +38,22 @@ class HandCritic(nn.Module):
         return tuple(scale * value for scale in self.scales)
 
 
-def test_choose_takes_the_proposal_whose_smaller_head_is_higher():
-    actor = th.tensor([[0.5, 0.0], [0.5, 0.0], [0.2, 0.0], [0.0, 0.3]])
-    reference = th.tensor([[-0.5, 0.0], [0.9, 0.0], [0.2, 0.0], [0.0, -0.3]])
-    w = th.tensor([[-1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    # Row 0: both heads value the reference more (0.5 vs -0.5): reference. Row 1: 0.9 > 0.5: reference.
-    # Row 2: a tie: the actor. Row 3: the actor (0.3 vs -0.3).
+def test_choose_takes_the_actor_only_where_its_lowest_head_is_above_the_references_highest():
+    actor = th.tensor([[0.5, 0.0], [0.5, 0.0], [0.2, 0.0], [0.0, 0.3], [0.4, 0.0]])
+    reference = th.tensor([[-0.5, 0.0], [0.9, 0.0], [0.2, 0.0], [0.0, -0.3], [0.3, 0.0]])
+    w = th.tensor([[-1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
+    # Heads Q = (1, 2) * w.a. Row 0: the reference is better (actor -0.5, -1 against 0.5, 1). Row 1: the
+    # reference (0.5, 1 against 0.9, 1.8). Row 2: a tie: the reference. Row 3: the actor (0.3, 0.6
+    # against -0.3, -0.6). Row 4: each head values the actor more (0.4 > 0.3, 0.8 > 0.6), but its lowest
+    # (0.4) is not above the reference's highest (0.6): the reference.
     chosen = choose(HandCritic(w, (1.0, 2.0)), None, actor, reference)  # type: ignore[arg-type]
-    expected = th.stack([reference[0], reference[1], actor[2], actor[3]])
-    assert th.equal(chosen, expected)
-    # Heads that disagree in sign: the smaller decides. Q1 = w.a, Q2 = -3 w.a: min picks the lower w.a.
+    assert th.equal(chosen, th.stack([reference[0], reference[1], reference[2], actor[3], reference[4]]))
+    # Heads of one scale: row 4's actor now wins (0.4 > 0.3), the others as before.
+    same = choose(HandCritic(w, (1.0, 1.0)), None, actor, reference)  # type: ignore[arg-type]
+    assert th.equal(same, th.stack([reference[0], reference[1], reference[2], actor[3], actor[4]]))
+    # Heads that disagree in sign (Q2 = -3 w.a): the intervals overlap on every row: the reference.
     disagree = choose(HandCritic(w, (1.0, -3.0)), None, actor, reference)  # type: ignore[arg-type]
-    assert th.equal(disagree, th.stack([actor[0], actor[1], actor[2], reference[3]]))
+    assert th.equal(disagree, reference)
 
 
 @pytest.fixture(scope="module")
@@ -110,12 +115,17 @@ def test_the_reference_stays_the_clone_and_the_normaliser_the_demonstrations(rea
     clone = [p.clone() for p in policy.actor.parameters()]
     for copy in (policy.reference, policy.actor_target):  # pretrain_actor set both to the clone
         assert all(th.equal(a, b) for a, b in zip(copy.parameters(), clone, strict=True))
+    # The clone has BC's dropout after each hidden layer (the actor none), off whenever it acts.
+    dropouts = [m for m in policy.reference.modules() if isinstance(m, nn.Dropout)]
+    assert len(dropouts) == len(cfg.agent.net_arch) and all(m.p == cfg.agent.bc_dropout for m in dropouts)
+    assert not any(isinstance(m, nn.Dropout) for m in policy.actor.modules())
     stats = {k: (rms.mean.copy(), rms.var.copy()) for k, rms in venv.obs_rms.items()}
     assert not venv.training
     model.set_logger(configure(None, []))
     model.learn(400)
     assert all(th.equal(a, b) for a, b in zip(policy.reference.parameters(), clone, strict=True))
     assert not all(th.equal(a, b) for a, b in zip(policy.actor.parameters(), clone, strict=True))
+    assert not any(m.training for m in policy.reference.modules())  # TD3's train() left it acting
     for key, (mean, var) in stats.items():  # 400 env steps, and the statistics did not move
         np.testing.assert_array_equal(venv.obs_rms[key].mean, mean)
         np.testing.assert_array_equal(venv.obs_rms[key].var, var)
@@ -168,7 +178,6 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
 ):
     import shutil
 
-    from tsrl.agents import factory as factory_module
     from tsrl.agents import resume, train
     from tsrl.agents.checkpoint import load_policy, usable_checkpoint
     from tsrl.agents.learners import LayerNormTD3Policy
@@ -193,8 +202,9 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
     pairs = zip(*(p.reference.parameters() for p in policies[:2]), strict=True)
     assert all(th.equal(a, b) for a, b in pairs)
     # A fast run whose checkpoints hold no reference (tsrl 0.2.0's) is refused, not resumed as a hybrid.
-    monkeypatch.setattr(factory_module, "ReferenceTD3Policy", LayerNormTD3Policy)
+    monkeypatch.setattr(AgentConfig, "has_reference", property(lambda self: False))
     old = train(cfg, tmp_path / "old", progress_bar=False)
     monkeypatch.undo()
+    assert type(load_policy(usable_checkpoint(old, True, False), TD3)[0].policy) is LayerNormTD3Policy  # type: ignore[arg-type]
     with pytest.raises(InvalidConfig, match="tsrl 0.2.0"):
         resume(old, total_timesteps=600, progress_bar=False)

@@ -103,19 +103,28 @@ def clone_step(
 
 
 def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
-    """`steps` BC gradient steps of the model's actor (its deterministic action, its own optimizer),
-    before any env step; the actors that start as it are then copied from it: the target actor (DDPG,
-    TD3) and the frozen reference (tsrl.agents.reference)."""
-    actor: Any = model.actor  # type: ignore[attr-defined]
-    actor.set_training_mode(True)
+    """`steps` BC gradient steps before any env step. With a reference (tsrl.agents.reference) the
+    clone is trained as a BC run trains its actor: the reference, with its dropout, and a fresh Adam at
+    the actor's learning rate; the actor and the target actor are then copied from it. Without one,
+    the actor (its deterministic action, its own optimizer), then copied into the target actor."""
+    policy: Any = model.policy
+    reference = getattr(policy, "reference", None)
+    clone: Any = model.actor if reference is None else reference  # type: ignore[attr-defined]
+    if reference is None:
+        optimizer, act = clone.optimizer, partial(actor_action, model)
+    else:
+        optimizer, act = th.optim.Adam(clone.parameters(), lr=model.lr_schedule(1)), clone
+    clone.requires_grad_(True)
+    clone.set_training_mode(True)
     for _ in range(steps):
-        clone_step(partial(actor_action, model), actor.optimizer, *batches.sample(batch_size))
-    actor.set_training_mode(False)
-    for name in ("actor_target", "reference"):
-        copy = getattr(model.policy, name, None)
-        if copy is not None:  # parameter by parameter: a ChosenTarget holds the target actor's as its own
+        clone_step(act, optimizer, *batches.sample(batch_size))
+    clone.set_training_mode(False)
+    clone.requires_grad_(reference is None)  # the reference stays frozen
+    for name in ("actor", "actor_target", "reference"):
+        copy = getattr(policy, name, None)
+        if copy is not None and copy is not clone:  # parameter by parameter: layers differ by dropout
             with th.no_grad():
-                for to, source in zip(copy.parameters(), actor.parameters(), strict=True):
+                for to, source in zip(copy.parameters(), clone.parameters(), strict=True):
                     to.copy_(source)
 
 

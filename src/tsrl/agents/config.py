@@ -307,7 +307,8 @@ class AgentConfig:
     """algo bc: gradient steps of behaviour cloning (its budget); the other algorithms: gradient steps
     of cloning that pre-train the actor before the first env step where the learner does (fast)."""
     bc_dropout: float = 0.1
-    """Dropout after each hidden layer of a behaviour-cloning actor (algo bc), off when it acts."""
+    """Dropout after each hidden layer of a behaviour-cloning actor (algo bc, and the fast learner's
+    reference clone), off when it acts."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)

@@ -1,16 +1,18 @@
 """A frozen reference policy beside the actor, the critic choosing between them (IBRL, Hu et al. 2023).
 
-The fast learner's policy keeps a copy of its behaviour-cloned actor, frozen (`reference`). Wherever
-TD3 takes the actor's action, it takes instead, per row, the proposal the critic values more:
+The fast learner's policy keeps its behaviour clone frozen (`reference`), trained as a BC run trains
+its actor (tsrl.agents.bc: dropout after each hidden layer, off when it acts). Wherever TD3 takes the
+actor's action, it takes instead, per row, the actor's only where every head of the critic values it
+above every head's value of the clone's (the heads agree that it is better):
 
-    a(s) = reference(s) if min_i Q_i(s, reference(s)) > min_i Q_i(s, actor(s)) else actor(s)
+    a(s) = actor(s) if min_i Q_i(s, actor(s)) > max_i Q_i(s, reference(s)) else reference(s)
 
 - acting and evaluation (the policy's `_predict`, and so the export): the critic's twin heads;
 - the TD target (TD3's `actor_target`): the target critic's twin heads on the target actor's and the
   reference's proposals, before TD3's target smoothing noise is added to the chosen one.
 
-A run so never acts worse than its clone where the critic ranks the two correctly, and the actor is
-free to climb. The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos when set).
+Where the heads disagree, the clone acts: a run leaves its clone only where the critic is sure, and
+the actor is free to climb. The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos).
 `ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
 of the policy's state dict (checkpoints keep it).
 """
@@ -23,20 +25,23 @@ import torch as th
 from stable_baselines3.common.type_aliases import PyTorchObs
 from torch import nn
 
+from .bc import with_dropout
 from .learners import LayerNormTD3Policy
 
 
-def min_q(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
-    """(n, 1) the smallest of the critic's heads (SB3's ContinuousCritic: a tuple of (n, 1))."""
-    return th.min(th.cat(critic(obs, actions), dim=1), dim=1, keepdim=True).values
+def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
+    """(n, heads) the critic's values (SB3's ContinuousCritic: a tuple of (n, 1), one per head)."""
+    return th.cat(critic(obs, actions), dim=1)
 
 
 def choose(
     critic: nn.Module, obs: PyTorchObs, actor_actions: th.Tensor, reference_actions: th.Tensor
 ) -> th.Tensor:
-    """(n, k): per row, the reference's action where min_i Q_i is strictly higher for it, else the actor's."""
-    take_reference = min_q(critic, obs, reference_actions) > min_q(critic, obs, actor_actions)
-    return th.where(take_reference, reference_actions, actor_actions)
+    """(n, k): per row, the actor's action where its smallest head is strictly above the reference's
+    largest, else the reference's."""
+    actor_low = heads(critic, obs, actor_actions).min(dim=1, keepdim=True).values
+    reference_high = heads(critic, obs, reference_actions).max(dim=1, keepdim=True).values
+    return th.where(actor_low > reference_high, actor_actions, reference_actions)
 
 
 class ChosenTarget(nn.Module):
@@ -63,18 +68,36 @@ class ChosenTarget(nn.Module):
 
 
 class ReferenceTD3Policy(LayerNormTD3Policy):
-    """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor the
-    critic chooses against in acting and in the TD target (module docstring). The reference starts as
-    the actor; tsrl.agents.bc.pretrain_actor sets both to the clone."""
+    """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor with
+    dropout `reference_dropout` after each hidden layer (as BC's), which the critic chooses against in
+    acting and in the TD target (module docstring). The reference starts as the actor;
+    tsrl.agents.bc.pretrain_actor clones the demonstrations into it and copies it into the actors."""
+
+    reference_dropout: float
+
+    def __init__(self, *args: Any, reference_dropout: float = 0.1, **kwargs: Any):
+        object.__setattr__(self, "reference_dropout", reference_dropout)  # before _build runs
+        super().__init__(*args, **kwargs)
 
     def _build(self, lr_schedule: Any) -> None:
         super()._build(lr_schedule)
         self.reference = self.make_actor(features_extractor=None)
-        self.reference.load_state_dict(self.actor.state_dict())
+        self.reference.mu = with_dropout(self.reference.mu, self.reference_dropout)
+        with th.no_grad():
+            for to, source in zip(self.reference.parameters(), self.actor.parameters(), strict=True):
+                to.copy_(source)
         self.reference.requires_grad_(False)
         self.reference.set_training_mode(False)
         # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
         self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
+
+    def set_training_mode(self, mode: bool) -> None:
+        """TD3's, with the reference always acting as it does once cloned (dropout off)."""
+        super().set_training_mode(mode)
+        self.reference.set_training_mode(False)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        return super()._get_constructor_parameters() | {"reference_dropout": self.reference_dropout}
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         return choose(self.critic, observation, self.actor(observation), self.reference(observation))
