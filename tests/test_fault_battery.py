@@ -66,6 +66,77 @@ def test_sigterm_during_an_evaluation_stops_it_and_the_checkpoint_resumes(tmp_pa
     assert checkpoint_steps(run_dir) == cfg.total_timesteps
 
 
+def _signal_at_call(monkeypatch, owner: type, name: str, n: int) -> list[int]:
+    """SIGTERM to this process inside the n-th call of owner.name; returns the list of calls so far."""
+    original = getattr(owner, name)
+    calls: list[int] = []
+
+    def signalled(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == n:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(owner, name, signalled)
+    return calls
+
+
+def _checkpointed_model(run_dir: Path):
+    from stable_baselines3 import DDPG
+
+    from tsrl.agents.checkpoint import load_checkpoint, usable_checkpoint
+    from tsrl.agents.factory import make_vec_env
+    from tsrl.agents.run_folder import load_config
+
+    cfg = load_config(run_dir)
+    checkpoint = usable_checkpoint(run_dir, cfg.agent.normalize, for_training=True)
+    assert checkpoint is not None
+    venv = make_vec_env(cfg)
+    return load_checkpoint(checkpoint, DDPG, venv, None), checkpoint
+
+
+def test_sigterm_during_an_update_stops_it_before_its_next_gradient_step(tmp_path, monkeypatch):
+    """A signal inside an update (10 gradient steps here; 400 on the stack) ends it before the next
+    gradient step applies anything: the checkpoint counts the 3 steps applied, not 10, and resumes."""
+    from tsrl.agents.her import FeatureHerReplayBuffer
+
+    calls = _signal_at_call(monkeypatch, FeatureHerReplayBuffer, "sample", 4)  # the 4th gradient step's batch
+    cfg = tiny()
+    with pytest.raises(TrainingInterrupted):
+        train(cfg, tmp_path, progress_bar=False)
+    monkeypatch.undo()
+    run_dir = tmp_path / cfg.run_name
+    assert len(calls) == 4  # no gradient step started after the signal
+    model, checkpoint = _checkpointed_model(run_dir)
+    assert model._n_updates == 3 and cfg.agent.gradient_steps == 10
+    assert checkpoint.state.env_steps == model.num_timesteps > cfg.agent.learning_starts
+    resume(run_dir, progress_bar=False)
+    assert checkpoint_steps(run_dir) == cfg.total_timesteps
+
+
+def test_sigterm_during_a_rollout_stops_after_the_env_step_in_progress(tmp_path, monkeypatch):
+    """A signal inside an episode's env step stops the rollout there: that step is neither stored nor
+    counted, the episode so far is kept as one cut short (its last transition a time limit), and the
+    checkpoint resumes."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    cfg = tiny()
+    _signal_at_call(monkeypatch, DummyVecEnv, "step_wait", 130)  # inside the third episode (50 steps each)
+    with pytest.raises(TrainingInterrupted) as stop:
+        train(cfg, tmp_path, progress_bar=False)
+    monkeypatch.undo()
+    run_dir = tmp_path / cfg.run_name
+    assert stop.value.env_steps == 129
+    model, checkpoint = _checkpointed_model(run_dir)
+    buffer = model.replay_buffer
+    assert checkpoint.state.env_steps == model.num_timesteps == buffer.pos == 129
+    assert buffer.dones[128, 0] and buffer.timeouts[128, 0] and not buffer.dones[127, 0]
+    assert buffer.ep_length[100:129, 0].tolist() == [29] * 29  # the cut episode is a whole one for HER
+    resume(run_dir, progress_bar=False)
+    # Rollouts are whole episodes again from the resume on: the budget is reached in the one under way.
+    assert cfg.total_timesteps <= checkpoint_steps(run_dir) < cfg.total_timesteps + 2 * 50
+
+
 def _experiment_file(tmp_path: Path) -> Path:
     definition = tmp_path / "long.toml"
     definition.write_text(

@@ -6,10 +6,12 @@ data/runs.csv; `table` prints the study's table from that file.
     python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
-seed 0), 8,000 gradient steps; lcb100 / lcb10: `--learner fast` with the same demonstrations as it is
-now (the clone trained as BC's and kept as a reference; the actor acts only where the critic's lowest
-head for it is above its highest for the clone, pre-registration 4); ref100 / ref10: the `--learner
-fast` of commits ab08374-a5747a7 (pre-registration 3), fast100 / fast10: that of commits
+seed 0), 8,000 gradient steps; gate100 / gate10: `--learner fast` with the same demonstrations as it
+is now (pre-registration 5: lcb's learner, and the clone acts until the choice is measured better on
+the task, tsrl.agents.acting_gate); lcb100 / lcb10: that of commit c09ac4e (pre-registration 4: the
+clone trained as BC's and kept as a reference, the actor acting only where the critic's lowest head for
+it is above its highest for the clone); ref100 / ref10: that of commits ab08374-a5747a7
+(pre-registration 3), fast100 / fast10: that of commits
 a6205d2-6840ec2 (pre-registration 2), whose rows are kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
 is not a screen: one seed, to find a bug or a cause before the pre-registered runs).
 Every evaluation has 100 episodes on the run's fixed unseen seeds. Per run: final = mean of the last
@@ -77,16 +79,16 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("lcb"):
+    if arm.startswith("gate"):
         agent = AgentConfig(learner="fast", demos=demo_cfg)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=BUDGETS[task], eval_freq=EVAL_FREQ.get(task, 2_500),
             eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
         )  # fmt: skip
-    for old, commits in (("fast", "a6205d2-6840ec2"), ("ref", "ab08374-a5747a7")):
+    for old, commits in (("fast", "a6205d2-6840ec2"), ("ref", "ab08374-a5747a7"), ("lcb", "c09ac4e")):
         if arm.startswith(old):
             raise SystemExit(f"arm {arm!r} is --learner fast of commits {commits}: run it at one of them")
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, lcb100, lcb10")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, gate100, gate10")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -132,7 +134,7 @@ def commit() -> str:
 
 
 def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
-    n = int(arm.removeprefix("bc").removeprefix("lcb"))
+    n = int(arm.removeprefix("bc").removeprefix("gate"))
     demos = demo_file(out, task, n)
     done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
     for seed in seeds:
@@ -201,11 +203,11 @@ TARGETS = {
 
 
 #: The learner arms and the pre-registration whose rules they are judged by (README).
-LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4"}
+LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5"}
 
 
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registrations 2-4) for each task and learner arm."""
+    """The pre-registered rules (README, pre-registrations 2-5) for each task and learner arm."""
     rows = read_rows()
     print(
         "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "

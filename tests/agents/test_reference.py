@@ -21,7 +21,8 @@ from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import save_demos
 from tsrl.agents.demonstrators import record_demos
-from tsrl.agents.reference import ChosenTarget, ReferenceTD3Policy, choose
+from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingGate, GatedTD3
+from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, choose
 
 REACH = "tsrl/UR5eReach-v0"
 
@@ -99,9 +100,15 @@ def test_acting_and_the_td_target_take_the_critics_choice(reach_demos):
         hand = HandCritic(w, (1.0, 2.0))
         critic.forward = hand.forward  # type: ignore[method-assign]
     expected = sign * 0.5 * th.ones(64, model.action_space.shape[0])  # type: ignore[index]
+    clone = -0.5 * th.ones(64, model.action_space.shape[0])  # type: ignore[index]
     with th.no_grad():
+        assert th.equal(model.actor_target(obs), expected)  # the TD target: always the choice
+        assert th.equal(policy._predict(obs, deterministic=True), clone)  # before the gate lets the choice act
+        policy.choice_acts.fill_(True)
         assert th.equal(policy._predict(obs, deterministic=True), expected)
-        assert th.equal(model.actor_target(obs), expected)
+        policy.episode_policy = CLONE  # a measuring episode of the clone overrides the gate
+        assert th.equal(policy._predict(obs, deterministic=True), clone)
+        policy.episode_policy = None
     actions, _ = model.predict({k: v.numpy() for k, v in obs.items()}, deterministic=True)
     np.testing.assert_array_equal(actions, expected.numpy())
     assert 0.2 < model.actor_target.reference_share < 0.8  # both proposals won rows: the test can fail
@@ -155,6 +162,7 @@ def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
     with th.no_grad():  # an actor that has moved away from its clone: the two proposals differ
         for p in model.policy.actor.parameters():
             p.add_(0.3 * th.randn_like(p))
+    model.policy.choice_acts.fill_(True)  # as the gate sets it once the choice measured better
     out = tmp_path / "export"
     export_policy(model, venv, cfg, out, None, None, None)
     contract = read_contract(out)
@@ -208,3 +216,68 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
     assert type(load_policy(usable_checkpoint(old, True, False), TD3)[0].policy) is LayerNormTD3Policy  # type: ignore[arg-type]
     with pytest.raises(InvalidConfig, match="tsrl 0.2.0"):
         resume(old, total_timesteps=600, progress_bar=False)
+
+
+def test_the_gate_lets_the_choice_act_only_when_measured_strictly_better():
+    gate = ActingGate()
+    kinds = []
+    for _ in range(4 * MIN_EPISODES - 1):  # one clone episode short of MIN_EPISODES each
+        kinds.append(gate.kind)
+        gate.end_episode(gate.kind == CHOICE)  # the choice succeeds, the clone fails
+    assert kinds[:4] == list(EPISODE_KINDS) == ["explore", CHOICE, "explore", CLONE]
+    assert len(gate.measured[CHOICE]) == MIN_EPISODES and len(gate.measured[CLONE]) == MIN_EPISODES - 1
+    assert not gate.choice_acts  # too few measured clone episodes
+    gate.end_episode(False)
+    assert gate.choice_acts and gate.success(CHOICE) == 1.0 and gate.success(CLONE) == 0.0
+    for _ in range(4 * WINDOW):  # both succeed: a tie, and the window forgot the clone's failures
+        gate.end_episode(True)
+    assert len(gate.measured[CLONE]) == WINDOW and gate.success(CLONE) == 1.0
+    assert not gate.choice_acts  # equal is not better: the clone acts
+
+
+class ObsCritic(nn.Module):
+    """Twin heads Q_i = scale_i * sign(first observation entry) * sum(a): with a constant actor (0.5)
+    and clone (-0.5), the choice is the actor's action where that entry is > 0, else the clone's."""
+
+    def forward(self, obs: dict[str, th.Tensor], actions: th.Tensor) -> tuple[th.Tensor, ...]:
+        value = th.sign(obs["observation"][:, :1]) * actions.sum(dim=1, keepdim=True)
+        return value, 2 * value
+
+
+def test_training_episodes_cycle_through_the_kinds_and_the_decision_is_saved_with_the_policy(
+    reach_demos, tmp_path
+):
+    cfg = fast(reach_demos, warmup=0)
+    venv = make_vec_env(cfg)
+    model = make_agent(cfg, venv)
+    assert isinstance(model, GatedTD3)
+    policy = model.policy
+    _set_constant(policy.actor, 0.5)
+    _set_constant(policy.reference, -0.5)
+    policy.critic.forward = ObsCritic().forward  # type: ignore[method-assign]
+    model.train = lambda *args, **kwargs: None  # type: ignore[method-assign]  # networks fixed: known choices
+    model.set_logger(configure(None, []))
+    model.learn(cfg.total_timesteps)
+    steps = int(venv.get_attr("spec")[0].max_episode_steps)
+    episodes = cfg.total_timesteps // steps
+    assert model.gate.episodes == episodes >= 8
+    assert len(model.gate.measured[CHOICE]) == len(model.gate.measured[CLONE]) == episodes // 4
+    buffer = model.replay_buffer
+    for episode in range(episodes):
+        rows = slice(episode * steps, (episode + 1) * steps)
+        first = venv.normalize_obs({k: v[rows, 0] for k, v in buffer.observations.items()})["observation"][:, :1]
+        choice = np.where(first > 0, 0.5, -0.5) * np.ones_like(buffer.actions[rows, 0])
+        acted = {CLONE: np.full_like(choice, -0.5), CHOICE: choice}
+        kind = EPISODE_KINDS[episode % 4]
+        if kind == "explore":  # the choice plus noise
+            assert not np.allclose(buffer.actions[rows, 0], choice, atol=1e-6), episode
+        else:  # no noise: exactly the measured policy's action
+            np.testing.assert_allclose(buffer.actions[rows, 0], acted[kind], atol=1e-6, err_msg=str(episode))
+    assert (buffer.actions[: episodes * steps] > 0).any()  # the actor acted somewhere: the test can fail
+    policy.choice_acts.fill_(True)  # as if the choice had measured better
+    model.save(tmp_path / "model.zip")
+    loaded = TD3.load(
+        tmp_path / "model.zip",
+        custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
+    )
+    assert bool(loaded.policy.choice_acts) and loaded.gate.episodes == episodes

@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from ..envs.keys import OBS_KEYS
 from ..exceptions import InvalidConfig
+from .acting_gate import GatedTD3
 from .action_penalty import attach_action_penalty
 from .bc import BCPolicy, BehaviourCloning, DemoBatches, pretrain_actor
 from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
@@ -35,6 +36,12 @@ ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
     for name in ALGOS
     if name != BC
 } | {BC: BehaviourCloning}
+
+
+def algo_class(a: AgentConfig) -> type[OffPolicyAlgorithm]:
+    """The algorithm that trains a run: GatedTD3 where the clone is kept as a reference
+    (tsrl.agents.acting_gate), else ALGO_CLASSES[algo]. A trained policy loads with either."""
+    return GatedTD3 if a.has_reference else ALGO_CLASSES[a.algo]
 
 
 class PolicyInputs(CombinedExtractor):
@@ -174,7 +181,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
             "demo_share_end": a.demos.batch_share_end,
             "demo_share_steps": a.demos.batch_share_steps,
         }
-        model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
+        model = algo_class(a)(policy, env, **kwargs)
         normalizer = env if isinstance(env, VecNormalize) else None
         demos = attach_demos(model, a.demos, normalizer)
         if a.starts_from_clone:  # the actor (and its reference, target) starts as BC's
@@ -182,7 +189,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         if normalizer is not None and a.fixed_normalizer:  # the statistics the clone was fitted under
             normalizer.training = False
     else:
-        model = ALGO_CLASSES[a.algo](policy, env, **kwargs)
+        model = algo_class(a)(policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
         attach_action_penalty(model, a.action_l2)
     return model

@@ -12,7 +12,8 @@ above every head's value of the clone's (the heads agree that it is better):
   reference's proposals, before TD3's target smoothing noise is added to the chosen one.
 
 Where the heads disagree, the clone acts: a run leaves its clone only where the critic is sure, and
-the actor is free to climb. The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos).
+the actor is free to climb. Whether this choice or the clone alone is the policy's deterministic
+action is decided by measured episodes (tsrl.agents.acting_gate; the `choice_acts` buffer). The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos).
 `ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
 of the policy's state dict (checkpoints keep it).
 """
@@ -27,6 +28,11 @@ from torch import nn
 
 from .bc import with_dropout
 from .learners import LayerNormTD3Policy
+
+CHOICE = "choice"
+"""The policy that acts by `choose` between actor and clone."""
+CLONE = "clone"
+"""The policy that acts by the clone alone."""
 
 
 def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
@@ -71,9 +77,15 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
     """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor with
     dropout `reference_dropout` after each hidden layer (as BC's), which the critic chooses against in
     acting and in the TD target (module docstring). The reference starts as the actor;
-    tsrl.agents.bc.pretrain_actor clones the demonstrations into it and copies it into the actors."""
+    tsrl.agents.bc.pretrain_actor clones the demonstrations into it and copies it into the actors.
+
+    It acts by the choice where the `choice_acts` buffer (a () bool tensor, in the state dict) is
+    True, else by the clone alone; `episode_policy` (CHOICE or CLONE), where set, overrides it for a
+    training episode (tsrl.agents.acting_gate)."""
 
     reference_dropout: float
+    choice_acts: th.Tensor
+    episode_policy: str | None = None
 
     def __init__(self, *args: Any, reference_dropout: float = 0.1, **kwargs: Any):
         object.__setattr__(self, "reference_dropout", reference_dropout)  # before _build runs
@@ -88,6 +100,7 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
                 to.copy_(source)
         self.reference.requires_grad_(False)
         self.reference.set_training_mode(False)
+        self.register_buffer("choice_acts", th.tensor(False))
         # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
         self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
 
@@ -100,4 +113,10 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         return super()._get_constructor_parameters() | {"reference_dropout": self.reference_dropout}
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        return choose(self.critic, observation, self.actor(observation), self.reference(observation))
+        clone = self.reference(observation)
+        if self.episode_policy == CLONE:
+            return clone
+        chosen = choose(self.critic, observation, self.actor(observation), clone)
+        if self.episode_policy == CHOICE:
+            return chosen
+        return th.where(self.choice_acts, chosen, clone)  # a tensor, not a Python branch: exports as such

@@ -3,9 +3,12 @@
 One process trains a run folder at a time (RunLock). Resuming uses the newest checkpoint that passes
 verification and falls back to the previous one if it is damaged (tsrl.agents.checkpoint).
 Evaluations and checkpoints happen at "safe points": after an update, where the next episode starts.
-SIGINT and SIGTERM are noted and honoured at the next safe point (at most one update period later,
-or the next step of a running evaluation, which is dropped and run again on resume): a checkpoint is
-written and TrainingInterrupted raised. A second SIGINT stops at once, without one.
+SIGINT and SIGTERM are noted and honoured after the env step, gradient step or evaluation step in
+progress: a rollout stops there (the episode so far is kept as one cut short at a time limit; the
+step that saw the signal is neither stored nor counted), an update before its next gradient step
+(tsrl.agents.update_stop; the rest of it is dropped), an evaluation before its next step (dropped,
+run again on resume). A checkpoint is written and TrainingInterrupted raised. A second SIGINT stops
+at once, without one.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import shutil
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Self
 
@@ -36,7 +40,7 @@ from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss, load_run_demos
 from .evaluation import EvaluationStopped, Evaluator, eval_seeds
-from .factory import ALGO_CLASSES, buffer_capacity, make_agent, make_vec_env
+from .factory import ALGO_CLASSES, algo_class, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
@@ -57,6 +61,7 @@ from .run_folder import (
     write_json_atomic,
     write_task_record,
 )
+from .update_stop import UpdateStop, UpdateStopped
 
 
 class TrainingInterrupted(Exception):
@@ -162,7 +167,7 @@ class _Session:
             model._n_updates = checkpoint.state.bc_gradient_steps
             state = checkpoint.state
         else:
-            model = load_checkpoint(checkpoint, ALGO_CLASSES[cfg.agent.algo], self.venv, self.normalizer)
+            model = load_checkpoint(checkpoint, algo_class(cfg.agent), self.venv, self.normalizer)
             if cfg.agent.has_reference and not isinstance(model.policy, ReferenceTD3Policy):
                 raise InvalidConfig(
                     f"{self.run_dir}: a --learner fast run of tsrl 0.2.0 (its policy keeps no reference "
@@ -188,12 +193,16 @@ class _Session:
             self.normalizer.training = False  # the statistics came back with the checkpoint: kept as saved
         last_row = truncate_progress(self.run_dir, state.clock if checkpoint else -1, _clock_column(cfg))
         model.set_logger(configure(str(self.run_dir / TENSORBOARD), ["tensorboard"]))
-        callback = _SafePointCallback(self, state, last_row)
+        update_stop = UpdateStop(model, lambda: self.stop_signal is not None)
+        callback = _SafePointCallback(self, state, last_row, update_stop)
         remaining = _budget(cfg) - _clock(model)
         try:
             with _SignalCatcher(self):
                 if remaining > 0:
-                    model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
+                    try:
+                        model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
+                    except UpdateStopped:
+                        callback.stopped_in_update()
                 else:
                     callback.init_callback(model)
                     callback.on_training_end()
@@ -205,6 +214,17 @@ class _Session:
     def close(self) -> None:
         self.evaluator.close()
         self.venv.close()
+
+
+def _cut_rollout_short(model: OffPolicyAlgorithm) -> None:
+    """A rollout stopped by a signal: the env step that saw it was counted but not stored, and the
+    episode so far is kept as one that ended at a time limit (HER samples goals within it)."""
+    model.num_timesteps -= model.n_envs
+    buffer = model.replay_buffer
+    assert isinstance(buffer, FeatureHerReplayBuffer)  # tsrl's runs train on HER goal envs
+    with warnings.catch_warnings():  # SB3 warns that it truncates: that is the point here
+        warnings.simplefilter("ignore", UserWarning)
+        buffer.truncate_last_trajectory()
 
 
 class _SignalCatcher:
@@ -224,7 +244,7 @@ class _SignalCatcher:
         if self.session.stop_signal is not None and signum == signal.SIGINT:
             raise KeyboardInterrupt
         self.session.stop_signal = signum
-        print(f"\n{signal.Signals(signum).name}: stopping at the next update boundary...", file=sys.stderr)
+        print(f"\n{signal.Signals(signum).name}: stopping after the step in progress...", file=sys.stderr)
 
     def __exit__(self, *exc: object) -> None:
         for sig, handler in self.previous.items():
@@ -234,9 +254,11 @@ class _SignalCatcher:
 class _SafePointCallback(BaseCallback):
     """Evaluates, writes progress rows and checkpoints between updates; drives the progress bar."""
 
-    def __init__(self, session: _Session, state: RunState, last_eval_step: int):
+    def __init__(self, session: _Session, state: RunState, last_eval_step: int, update_stop: UpdateStop):
         super().__init__()
         self.session = session
+        self.update_stop = update_stop
+        self.in_rollout = False  # a signal stopped a rollout: its episode is cut short at the checkpoint
         self.cfg = session.cfg
         self.next_eval = state.next_eval
         self.next_checkpoint = state.next_checkpoint
@@ -285,7 +307,16 @@ class _SafePointCallback(BaseCallback):
             self.pbar.update(self.training_env.num_envs)
             if any(self.locals.get("dones", ())):
                 self._update_postfix()
-        return True
+        self.in_rollout = self.session.stop_signal is not None
+        return not self.in_rollout  # SB3 then ends learn() without storing the step: _on_training_end
+
+    def _on_rollout_end(self) -> None:
+        self.update_stop.begin()  # an update follows
+
+    def stopped_in_update(self) -> None:
+        """After UpdateStopped: its applied gradient steps counted, a checkpoint, TrainingInterrupted."""
+        self.update_stop.settle()
+        self._safe_point(final=False)
 
     def _on_training_end(self) -> None:
         self._safe_point(final=True)
@@ -316,6 +347,8 @@ class _SafePointCallback(BaseCallback):
                 self.next_eval = (step // self.cfg.eval_freq + 1) * self.cfg.eval_freq
             except EvaluationStopped:  # a signal during it: checkpointed below, evaluated again on resume
                 stop = self.session.stop_signal
+        if self.in_rollout:
+            _cut_rollout_short(model)
         if step >= self.next_checkpoint or final or stop is not None:
             self.next_checkpoint = (step // self.cfg.checkpoint_freq + 1) * self.cfg.checkpoint_freq
             state = RunState(
