@@ -31,7 +31,9 @@ class ActorShare:
         self.actor = self.rows = 0
         self.choose = reference_module.choose
 
-    def __call__(self, critic: Any, obs: Any, actor_actions: th.Tensor, reference_actions: th.Tensor) -> th.Tensor:
+    def __call__(
+        self, critic: Any, obs: Any, actor_actions: th.Tensor, reference_actions: th.Tensor
+    ) -> th.Tensor:
         chosen = self.choose(critic, obs, actor_actions, reference_actions)
         self.actor += int((chosen == actor_actions).all(dim=1).logical_and(
             (actor_actions != reference_actions).any(dim=1)).sum())  # fmt: skip

@@ -18,10 +18,10 @@ from torch import nn
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
+from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingGate, GatedTD3
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import save_demos
 from tsrl.agents.demonstrators import record_demos
-from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingGate, GatedTD3
 from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, choose
 
 REACH = "tsrl/UR5eReach-v0"
@@ -103,7 +103,9 @@ def test_acting_and_the_td_target_take_the_critics_choice(reach_demos):
     clone = -0.5 * th.ones(64, model.action_space.shape[0])  # type: ignore[index]
     with th.no_grad():
         assert th.equal(model.actor_target(obs), expected)  # the TD target: always the choice
-        assert th.equal(policy._predict(obs, deterministic=True), clone)  # before the gate lets the choice act
+        assert th.equal(
+            policy._predict(obs, deterministic=True), clone
+        )  # before the gate lets the choice act
         policy.choice_acts.fill_(True)
         assert th.equal(policy._predict(obs, deterministic=True), expected)
         policy.episode_policy = CLONE  # a measuring episode of the clone overrides the gate
@@ -265,7 +267,9 @@ def test_training_episodes_cycle_through_the_kinds_and_the_decision_is_saved_wit
     buffer = model.replay_buffer
     for episode in range(episodes):
         rows = slice(episode * steps, (episode + 1) * steps)
-        first = venv.normalize_obs({k: v[rows, 0] for k, v in buffer.observations.items()})["observation"][:, :1]
+        first = venv.normalize_obs({k: v[rows, 0] for k, v in buffer.observations.items()})["observation"][
+            :, :1
+        ]
         choice = np.where(first > 0, 0.5, -0.5) * np.ones_like(buffer.actions[rows, 0])
         acted = {CLONE: np.full_like(choice, -0.5), CHOICE: choice}
         kind = EPISODE_KINDS[episode % 4]
