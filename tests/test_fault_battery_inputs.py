@@ -172,6 +172,31 @@ def test_demonstrations_of_another_task_file_with_the_same_observation_are_refus
     assert not (tmp_path / "out").exists()
 
 
+def test_demonstrations_carry_the_digests_of_the_files_their_task_reads_and_a_change_is_refused(
+    reach_demos, tmp_path
+):
+    import dataclasses
+    import hashlib
+
+    from tsrl.agents.demo_files import save_demos
+    from tsrl.agents.task_record import task_files
+
+    task, demos, _ = reach_demos
+    files = {"+".join(f.roles): f.path for f in task_files(task) if "task" not in f.roles}
+    assert set(files) == {"robot model", "scene"}  # the UR5e's MJCF and the reach's scene
+    assert demos.meta["task_files"] == {r: hashlib.sha256(p.read_bytes()).hexdigest() for r, p in files.items()}
+    # Recorded while the robot model was another file: refused, naming it.
+    meta = demos.meta | {"task_files": demos.meta["task_files"] | {"robot model": "0" * 64}}
+    moved = save_demos(dataclasses.replace(demos, meta=meta), tmp_path / "moved.npz")
+    _refused(
+        _train_with_demos(task, moved, tmp_path / "out"),
+        str(moved),
+        "robot model file sha256 000000000000",
+        "changed since the recording",
+    )
+    assert not (tmp_path / "out").exists()
+
+
 def test_demonstrations_whose_rewards_are_not_the_tasks_are_refused(reach_demos, tmp_path):
     import dataclasses
 

@@ -13,7 +13,7 @@ One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N
 
 | array | shape | dtype | meaning |
 | --- | --- | --- | --- |
-| meta | () | str | JSON: format "tsrl-demos", version, env_id, obs (as given), obs_spec (the env's), action (mode), task_sha256 (of the task file's bytes; absent in older files), demonstrator, tsrl_version, attempted (episodes run), kept |
+| meta | () | str | JSON: format "tsrl-demos", version, env_id, obs (as given), obs_spec (the env's), action (mode), task_sha256 (of the task file's bytes; absent in older files), task_files (roles -> sha256 of the robot file, robot model and scene it reads; absent in older files), demonstrator, tsrl_version, attempted (episodes run), kept |
 | observation | (N, T+1, d) | float64 | `observation` at reset and after each step |
 | achieved_goal | (N, T+1, g) | float64 | |
 | desired_goal | (N, T+1, g) | float64 | |
@@ -24,7 +24,8 @@ One `np.savez_compressed` archive, readable with `np.load(path)` (no pickles). N
 
 Every episode has the environment's full length (T steps, ended by its time limit); an episode cut
 short (a physics blow-up) is dropped while recording. A file whose task_sha256 is not that of the
-training task's file (recorded on another task file with the same observation), or whose rewards are
+training task's file (recorded on another task file with the same observation), or whose task_files
+(the sha256 of the robot file, robot model and scene the task reads) differ from theirs now, or whose rewards are
 not the task's own (recomputed with the env's compute_reward from the stored goals), is refused when
 a run starts (demo_record).
 """
@@ -49,6 +50,7 @@ from .config import TrainConfig
 from .demo_lerobot import LeRobotDemoError, is_lerobot, read_lerobot
 from .demo_minari import SUFFIX as MINARI_SUFFIX
 from .demo_minari import MinariDemoError, is_minari, read_minari, write_minari
+from .task_record import task_files
 
 FORMAT = "tsrl-demos"
 VERSION = 1
@@ -83,6 +85,10 @@ class DemoSpec:
     action_dim: int
     task_sha256: str | None = None
     """The sha256 of the task file's bytes (None: a task built in code, or a file from before it was kept)."""
+    task_files: tuple[tuple[str, str], ...] | None = None
+    """(roles, sha256) of every other file the task reads: its robot file, the robot's model, the scene
+    (tsrl.agents.task_record.task_files; roles joined by "+"). None: a task built in code, or a file
+    from before they were kept."""
 
     @classmethod
     def of(cls, env: gym.Env) -> DemoSpec:
@@ -101,6 +107,7 @@ class DemoSpec:
             goal_dim=int(np.prod(space["desired_goal"].shape or ())),
             action_dim=int(base.action_space.shape[0]),
             task_sha256=_task_sha256(tsrl_env.task.source),
+            task_files=_task_file_digests(tsrl_env.task.source),
         )
 
 
@@ -140,6 +147,7 @@ class Demonstrations:
             self.desired_goal.shape[2],
             self.actions.shape[2],
             m.get("task_sha256"),
+            tuple(m["task_files"].items()) if m.get("task_files") is not None else None,
         )
 
 
@@ -266,13 +274,27 @@ def _check_spec(path: Path, got: DemoSpec, expect: DemoSpec) -> None:
             f"task file sha256 {got.task_sha256[:12]} (this run's task file: {expect.task_sha256[:12]}; "
             "recorded on another task file)"
         )
+    if got.task_files is not None and expect.task_files is not None:
+        now = dict(expect.task_files)
+        diffs += [
+            f"{roles} file sha256 {digest[:12]} (this run's: {now[roles][:12]}; changed since the recording)"
+            for roles, digest in got.task_files
+            if roles in now and now[roles] != digest
+        ]
     if diffs:
         raise DemoFileError(path, "recorded for another environment: " + "; ".join(diffs))
 
 
 def _task_sha256(source: Path | None) -> str | None:
     """The sha256 of a task file's bytes; None for a task built in code."""
-    return None if source is None else hashlib.sha256(Path(source).read_bytes()).hexdigest()
+    return None if source is None else sha256(source)
+
+
+def _task_file_digests(source: Path | None) -> tuple[tuple[str, str], ...] | None:
+    """DemoSpec.task_files of the task file `source`; None for a task built in code."""
+    if source is None:
+        return None
+    return tuple(("+".join(f.roles), sha256(f.path)) for f in task_files(source) if "task" not in f.roles)
 
 
 def check_rewards(path: Path | str, demos: Demonstrations, env: gym.Env) -> None:

@@ -113,6 +113,7 @@ def record_demos(
         "obs_spec": spec.obs_spec,
         "action": spec.action,
         "task_sha256": spec.task_sha256,
+        "task_files": dict(spec.task_files) if spec.task_files is not None else None,
         "demonstrator": demonstrator.name,
         "tsrl_version": _tsrl_version(),
         "recording_seed": seed,
