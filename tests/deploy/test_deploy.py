@@ -112,3 +112,43 @@ def test_bad_deploy_options_are_one_line(trained_export, tmp_path, capsys, monke
 def test_export_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):
     assert main(["export", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
     assert "is not a run folder" in one_error_line(capsys)
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_a_signal_stops_the_deployment_after_the_servo_tick_in_progress(
+    trained_export, tmp_path, capsys, monkeypatch, sig
+):
+    """SIGTERM or SIGINT in the middle of an episode: no further command is sent, the backend is
+    closed (which stops the arm), the log ends with the episode stopped by it, exit 128 + the signal."""
+    import os
+    import signal
+
+    from tsrl.deploy.backends import MujocoBackend
+
+    send, close = MujocoBackend.send, MujocoBackend.close
+    sent, closed = [], []
+
+    def sending(self, *args, **kwargs):
+        sent.append(1)
+        if len(sent) == 30:  # the second policy step's tenth servo tick (20 ticks a step)
+            os.kill(os.getpid(), getattr(signal, sig))
+        return send(self, *args, **kwargs)
+
+    def closing(self):
+        closed.append(len(sent))
+        return close(self)
+
+    monkeypatch.setattr(MujocoBackend, "send", sending)
+    monkeypatch.setattr(MujocoBackend, "close", closing)
+    log = tmp_path / "deploy.jsonl"
+    assert main(["deploy", str(trained_export), "--episodes", "3", "--log", str(log)]) == 128 + getattr(
+        signal, sig
+    )
+    assert len(sent) == 30 and closed == [30]  # not one command after the signal's tick
+    out = capsys.readouterr().out
+    assert f"stopped in episode 0: {sig}: stopped on the operator's signal" in out
+    header, records, episodes = read_log(log)
+    assert len(episodes) == 1 and episodes[0]["stopped"].startswith(sig)
+    assert [len(r["servo"]) for r in records if r["type"] == "cycle"] == [20, 10]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the handlers were put back
+    assert main(["deploy", "--replay", str(log)]) == 0  # the stopped log replays to the same commands

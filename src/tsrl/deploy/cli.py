@@ -7,13 +7,15 @@ until a command runs (export loads torch; deploy does not).
 
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, Self
 
 from tyro.conf import Positional, arg
 
 from ..exceptions import InvalidConfig
+from ..signals import in_main_thread
 
 
 @dataclass(frozen=True)
@@ -157,10 +159,18 @@ class Deploy:
         seeds = list(self.seeds) if self.seeds is not None else list(range(self.episodes))
         header = log_header(self.export_dir, backend, options, {"servo": self.servo, "dry_run": self.dry_run})
         log = DeployLog(self.log, header)
+        signals = _Signals()
         try:
-            results = run_episodes(
-                controller, backend, seeds, [goal] * len(seeds) if goal is not None else None, log, self.servo
-            )
+            with signals:
+                results = run_episodes(
+                    controller,
+                    backend,
+                    seeds,
+                    [goal] * len(seeds) if goal is not None else None,
+                    log,
+                    self.servo,
+                    stop=signals.reason,
+                )
         finally:
             log.close()
         for i, r in enumerate(results):
@@ -175,7 +185,8 @@ class Deploy:
             )
         stopped = next((r.stopped for r in results if r.stopped is not None), None)
         if stopped is not None:
-            print(f"stopped by the safety layer in episode {len(results) - 1}: {stopped}")
+            by = "" if signals.caught else " by the safety layer"
+            print(f"stopped{by} in episode {len(results) - 1}: {stopped}")
         compute = np.concatenate([r.compute_s for r in results]) * 1e3
         interp = np.concatenate([r.interpolate_s for r in results]) * 1e6
         wins = sum(r.success for r in results)
@@ -187,6 +198,8 @@ class Deploy:
             f"p99 {np.percentile(compute, 99):.3f} ms; interpolate p99 {np.percentile(interp, 99):.1f} us; "
             f"{loop}log: {self.log}" + (" (dry run: nothing was sent)" if self.dry_run else "")
         )
+        if signals.caught:
+            return 128 + signals.caught[0]
         return 0 if stopped is None else 1
 
     def _replay(self) -> int:
@@ -237,3 +250,33 @@ def _parse_goal(text: str | None) -> tuple[float, ...] | None:
 
 #: The commands tsrl.cli adds.
 DEPLOY_COMMANDS: dict[str, type] = {"export": Export, "deploy": Deploy}
+
+
+class _Signals:
+    """SIGINT and SIGTERM during a deployment, noted: the loop stops after the servo tick in progress
+    (`reason`), which closes the backend and so stops the arm, and the command exits with 128 + the
+    signal. A second SIGINT raises KeyboardInterrupt at once (the backend is still closed)."""
+
+    def __init__(self) -> None:
+        self.caught: list[int] = []
+        self.previous: dict[int, Any] = {}
+
+    def __enter__(self) -> Self:
+        if in_main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._note)
+        return self
+
+    def _note(self, signum: int, frame: Any) -> None:
+        if self.caught and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.caught.append(signum)
+
+    def reason(self) -> str | None:
+        if not self.caught:
+            return None
+        return f"{signal.Signals(self.caught[0]).name}: stopped on the operator's signal"
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)

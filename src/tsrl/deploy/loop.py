@@ -20,7 +20,7 @@ import json
 import math
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Literal
@@ -197,6 +197,7 @@ def run_episodes(
     log: DeployLog | None = None,
     servo: ServoMode = "interpolate",
     max_refused: int = MAX_REFUSED_IN_ROW,
+    stop: Callable[[], str | None] = lambda: None,
 ) -> list[EpisodeResult]:
     """Runs one episode per seed (goals[i], or drawn as the task draws it with seeds[i]); see the
     module docstring. For a dry run, pass a ShadowBackend (nothing is sent; logged alike).
@@ -204,7 +205,8 @@ def run_episodes(
     A servo command the backend refuses (`send` says why) is a fault the safety layer handles
     (tsrl.deploy.safety.RefusedCommands): the step reports COMMAND_REFUSED, the commands hold until
     the next policy step; `max_refused` in a row stop the deployment there (`EpisodeResult.stopped`
-    says why; no further episode runs; the backend is closed, which stops the arm)."""
+    says why; no further episode runs; the backend is closed, which stops the arm). `stop()` is asked
+    after every servo tick: a reason (an operator's signal) stops the deployment there alike."""
     check_backend(backend, controller.contract)
     if servo == "hold" and not isinstance(backend, MujocoBackend):
         raise InvalidConfig("--servo hold (the training env's command timing) is for the MuJoCo backend only")
@@ -225,7 +227,7 @@ def run_episodes(
                     raise InvalidConfig("an episode needs a goal or a seed to draw one from")
                 goal = controller.sample_goal(seed)
             result = _episode(
-                controller, backend, i, seed, np.asarray(goal, np.float64), ticks, log, servo, refusals
+                controller, backend, i, seed, np.asarray(goal, np.float64), ticks, log, servo, refusals, stop
             )
             results.append(result)
             if log is not None:
@@ -247,6 +249,7 @@ def _episode(
     log: DeployLog | None,
     servo: ServoMode,
     refusals: RefusedCommands,
+    stop: Callable[[], str | None],
 ) -> EpisodeResult:
     backend.reset(seed)
     if isinstance(backend, MujocoBackend):
@@ -292,6 +295,9 @@ def _episode(
                 if result.stopped is not None:
                     break
             backend.wait()
+            result.stopped = stop()
+            if result.stopped is not None:
+                break
         if log is not None:
             wall_t = result.start_s[-1] - result.start_s[0]
             log.cycle(
