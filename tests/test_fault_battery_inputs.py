@@ -184,7 +184,9 @@ def test_demonstrations_carry_the_digests_of_the_files_their_task_reads_and_a_ch
     task, demos, _ = reach_demos
     files = {"+".join(f.roles): f.path for f in task_files(task) if "task" not in f.roles}
     assert set(files) == {"robot model", "scene"}  # the UR5e's MJCF and the reach's scene
-    assert demos.meta["task_files"] == {r: hashlib.sha256(p.read_bytes()).hexdigest() for r, p in files.items()}
+    assert demos.meta["task_files"] == {
+        r: hashlib.sha256(p.read_bytes()).hexdigest() for r, p in files.items()
+    }
     # Recorded while the robot model was another file: refused, naming it.
     meta = demos.meta | {"task_files": demos.meta["task_files"] | {"robot model": "0" * 64}}
     moved = save_demos(dataclasses.replace(demos, meta=meta), tmp_path / "moved.npz")

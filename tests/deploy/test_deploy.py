@@ -147,7 +147,7 @@ def test_a_signal_stops_the_deployment_after_the_servo_tick_in_progress(
     assert len(sent) == 30 and closed == [30]  # not one command after the signal's tick
     out = capsys.readouterr().out
     assert f"stopped in episode 0: {sig}: stopped on the operator's signal" in out
-    header, records, episodes = read_log(log)
+    _, records, episodes = read_log(log)
     assert len(episodes) == 1 and episodes[0]["stopped"].startswith(sig)
     assert [len(r["servo"]) for r in records if r["type"] == "cycle"] == [20, 10]
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the handlers were put back
