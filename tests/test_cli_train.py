@@ -216,18 +216,39 @@ def test_ctrl_c_during_start_up_is_one_line_and_exit_130(tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+#: tsrl with its checkpoint saving held until stdin has a line: a save that takes long (a large
+#: replay buffer on a slow disk), so that the first Ctrl-C cannot be honoured before a second one.
+HOLD_AT_CHECKPOINT = """
+import runpy, signal, sys
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as TSRL_WITH_CTRL_C: not ignored
+import tsrl.agents.training as training
+
+save = training.save_checkpoint
+
+def held(*args, **kwargs):
+    print("checkpointing", flush=True)
+    sys.stdin.readline()
+    return save(*args, **kwargs)
+
+training.save_checkpoint = held
+sys.argv[0] = "tsrl"
+runpy.run_module("tsrl.cli", run_name="__main__", alter_sys=True)
+"""
+
+
 def test_a_second_ctrl_c_stops_at_once_in_one_line_and_exit_130(tmp_path):
-    # Updates every 10,000 episodes: after the first SIGINT the next safe point is 500,000 steps away.
-    proc = spawn(
-        "train", "--out-dir", str(tmp_path), *TINY, "--total-timesteps", "1000000", "--buffer-size", "2000",
-        "--train-freq-episodes", "10000",
+    proc = subprocess.Popen(
+        [sys.executable, "-c", HOLD_AT_CHECKPOINT, "train", "--out-dir", str(tmp_path), *TINY,
+         "--total-timesteps", "1000000", "--buffer-size", "2000"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     run_dir = tmp_path / RUN_NAME
-    wait_for(lambda: (run_dir / "progress.csv").is_file() and steps_column(run_dir) == [(0, 0)], proc)
-    proc.send_signal(signal.SIGINT)  # the step-0 evaluation ran inside training: SIGINT is caught
-    while "SIGINT: stopping at the next update boundary" not in proc.stderr.readline():
+    while proc.stdout.readline() != "checkpointing\n":  # a checkpoint is being saved, and held
         assert proc.poll() is None
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signal.SIGINT)  # noted: the run would stop once the save is done
+    while "SIGINT: stopping after the step in progress" not in proc.stderr.readline():
+        assert proc.poll() is None
+    proc.send_signal(signal.SIGINT)  # a second one: at once
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGINT, stderr
     expected = (
