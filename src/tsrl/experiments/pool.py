@@ -542,8 +542,9 @@ class Progress:
         self._status(with_steps=True)
 
     def message(self, text: str) -> None:
-        self._clear()
-        print(text, file=self.stream, flush=True)
+        with _signals_deferred():  # a stop's handler raises: not between the text and its newline
+            self._clear()
+            print(text, file=self.stream, flush=True)
 
     def close(self) -> None:
         self._clear()
