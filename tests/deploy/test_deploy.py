@@ -151,4 +151,5 @@ def test_a_signal_stops_the_deployment_after_the_servo_tick_in_progress(
     assert len(episodes) == 1 and episodes[0]["stopped"].startswith(sig)
     assert [len(r["servo"]) for r in records if r["type"] == "cycle"] == [20, 10]
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the handlers were put back
-    assert main(["deploy", "--replay", str(log)]) == 0  # the stopped log replays to the same commands
+    video = tmp_path / "replay.mp4"  # the stopped log replays to the same commands
+    assert main(["deploy", "--replay", str(log), "--video", str(video), "--video-every", "25"]) == 0
