@@ -22,7 +22,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Self
+from typing import Any
 
 import numpy as np
 import torch as th
@@ -32,7 +32,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
-from ..signals import in_main_thread
+from ..signals import StopSignals
 from .action_penalty import attach_action_penalty
 from .bc import BehaviourCloning
 from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
@@ -197,7 +197,7 @@ class _Session:
         callback = _SafePointCallback(self, state, last_row, update_stop)
         remaining = _budget(cfg) - _clock(model)
         try:
-            with _SignalCatcher(self):
+            with StopSignals(self._note_stop):
                 if remaining > 0:
                     try:
                         model.learn(remaining, callback=callback, reset_num_timesteps=False, log_interval=10)
@@ -210,6 +210,11 @@ class _Session:
             callback.close()
         model.logger.close()
         _summary(self.run_dir, callback)
+
+    def _note_stop(self, signum: int) -> None:
+        """A stop signal: honoured after the step in progress (module docstring)."""
+        self.stop_signal = signum
+        print(f"\n{signal.Signals(signum).name}: stopping after the step in progress...", file=sys.stderr)
 
     def close(self) -> None:
         self.evaluator.close()
@@ -225,30 +230,6 @@ def _cut_rollout_short(model: OffPolicyAlgorithm) -> None:
     with warnings.catch_warnings():  # SB3 warns that it truncates: that is the point here
         warnings.simplefilter("ignore", UserWarning)
         buffer.truncate_last_trajectory()
-
-
-class _SignalCatcher:
-    """SIGINT/SIGTERM set session.stop_signal; a second SIGINT raises KeyboardInterrupt at once."""
-
-    def __init__(self, session: _Session):
-        self.session = session
-        self.previous: dict[int, Any] = {}
-
-    def __enter__(self) -> Self:
-        if in_main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self.previous[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def _handle(self, signum: int, frame: Any) -> None:
-        if self.session.stop_signal is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        self.session.stop_signal = signum
-        print(f"\n{signal.Signals(signum).name}: stopping after the step in progress...", file=sys.stderr)
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, handler in self.previous.items():
-            signal.signal(sig, handler)
 
 
 class _SafePointCallback(BaseCallback):

@@ -10,12 +10,12 @@ from __future__ import annotations
 import signal
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal, Self
+from typing import Annotated, Literal
 
 from tyro.conf import Positional, arg
 
 from ..exceptions import InvalidConfig
-from ..signals import in_main_thread
+from ..signals import StopSignals
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,7 @@ class Deploy:
         seeds = list(self.seeds) if self.seeds is not None else list(range(self.episodes))
         header = log_header(self.export_dir, backend, options, {"servo": self.servo, "dry_run": self.dry_run})
         log = DeployLog(self.log, header)
-        signals = _Signals()
+        signals = StopSignals()
         try:
             with signals:
                 results = run_episodes(
@@ -169,7 +169,7 @@ class Deploy:
                     [goal] * len(seeds) if goal is not None else None,
                     log,
                     self.servo,
-                    stop=signals.reason,
+                    stop=lambda: _stop_reason(signals.caught),
                 )
         finally:
             log.close()
@@ -252,31 +252,6 @@ def _parse_goal(text: str | None) -> tuple[float, ...] | None:
 DEPLOY_COMMANDS: dict[str, type] = {"export": Export, "deploy": Deploy}
 
 
-class _Signals:
-    """SIGINT and SIGTERM during a deployment, noted: the loop stops after the servo tick in progress
-    (`reason`), which closes the backend and so stops the arm, and the command exits with 128 + the
-    signal. A second SIGINT raises KeyboardInterrupt at once (the backend is still closed)."""
-
-    def __init__(self) -> None:
-        self.caught: list[int] = []
-        self.previous: dict[int, Any] = {}
-
-    def __enter__(self) -> Self:
-        if in_main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self.previous[sig] = signal.signal(sig, self._note)
-        return self
-
-    def _note(self, signum: int, frame: Any) -> None:
-        if self.caught and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        self.caught.append(signum)
-
-    def reason(self) -> str | None:
-        if not self.caught:
-            return None
-        return f"{signal.Signals(self.caught[0]).name}: stopped on the operator's signal"
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, handler in self.previous.items():
-            signal.signal(sig, handler)
+def _stop_reason(caught: list[int]) -> str | None:
+    """The deployment's stop reason once an operator's signal was noted (tsrl.signals.StopSignals)."""
+    return f"{signal.Signals(caught[0]).name}: stopped on the operator's signal" if caught else None
