@@ -258,7 +258,9 @@ def test_a_ctrl_c_asks_the_running_runs_to_checkpoint_and_starts_no_other(tmp_pa
     )
     (done,) = [line for line in lines if line.startswith("[1/2] interrupted")]
     assert first.name in done and "SIGTERM: stopped at" in done and "checkpoint saved" in done
-    assert checkpoint_at(first) > 0 and not second.exists()
+    # A stop is honoured after the env step in progress, so the checkpoint may be at any env step from 0
+    # (the signal can arrive in the first step after the step-0 evaluation): that it exists is the point.
+    assert latest_checkpoint(first) is not None and not second.exists()
     assert "0 failed, 1 interrupted, 1 not started" in stderr
     assert lines[-1] == "tsrl experiment: interrupted; run it again to resume"
 
