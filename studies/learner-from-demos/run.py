@@ -6,9 +6,10 @@ data/runs.csv; `table` prints the study's table from that file.
     python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
-seed 0), 8,000 gradient steps; gate100 / gate10: `--learner fast` with the same demonstrations as it
-is now (pre-registration 5: lcb's learner, and the clone acts until the choice is measured better on
-the task, tsrl.agents.acting_gate); lcb100 / lcb10: that of commit c09ac4e (pre-registration 4: the
+seed 0), 8,000 gradient steps; igate100 / igate10: `--learner fast` with the same demonstrations as
+it is now (pre-registration 6: the gate, IBRL's choice, the clone measured once); gate100 / gate10:
+that of commit 35ff8dc (pre-registration 5: lcb's learner, and the clone acts until the choice is
+measured better on the task, tsrl.agents.acting_gate); lcb100 / lcb10: that of commit c09ac4e (pre-registration 4: the
 clone trained as BC's and kept as a reference, the actor acting only where the critic's lowest head for
 it is above its highest for the clone); ref100 / ref10: that of commits ab08374-a5747a7
 (pre-registration 3), fast100 / fast10: that of commits
@@ -79,16 +80,17 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("gate"):
+    if arm.startswith("igate"):
         agent = AgentConfig(learner="fast", demos=demo_cfg)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=BUDGETS[task], eval_freq=EVAL_FREQ.get(task, 2_500),
             eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
         )  # fmt: skip
-    for old, commits in (("fast", "a6205d2-6840ec2"), ("ref", "ab08374-a5747a7"), ("lcb", "c09ac4e")):
+    old_designs = {"fast": "a6205d2-6840ec2", "ref": "ab08374-a5747a7", "lcb": "c09ac4e", "gate": "35ff8dc"}
+    for old, commits in old_designs.items():
         if arm.startswith(old):
             raise SystemExit(f"arm {arm!r} is --learner fast of commits {commits}: run it at one of them")
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, gate100, gate10")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, igate100, igate10")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -134,7 +136,7 @@ def commit() -> str:
 
 
 def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
-    n = int(arm.removeprefix("bc").removeprefix("gate"))
+    n = int(arm.lstrip("abcdefghijklmnopqrstuvwxyz") or "0")
     demos = demo_file(out, task, n)
     done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
     for seed in seeds:
@@ -203,11 +205,11 @@ TARGETS = {
 
 
 #: The learner arms and the pre-registration whose rules they are judged by (README).
-LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5"}
+LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5", "igate": "6"}
 
 
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registrations 2-5) for each task and learner arm."""
+    """The pre-registered rules (README, pre-registrations 2-6) for each task and learner arm."""
     rows = read_rows()
     print(
         "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "

@@ -39,22 +39,20 @@ class HandCritic(nn.Module):
         return tuple(scale * value for scale in self.scales)
 
 
-def test_choose_takes_the_actor_only_where_its_lowest_head_is_above_the_references_highest():
-    actor = th.tensor([[0.5, 0.0], [0.5, 0.0], [0.2, 0.0], [0.0, 0.3], [0.4, 0.0]])
-    reference = th.tensor([[-0.5, 0.0], [0.9, 0.0], [0.2, 0.0], [0.0, -0.3], [0.3, 0.0]])
+def test_choose_takes_the_proposal_whose_smaller_head_is_higher_the_actor_on_a_tie():
+    actor = th.tensor([[0.5, 0.0], [0.5, 0.0], [0.2, 0.5], [0.0, 0.3], [0.4, 0.0]])
+    reference = th.tensor([[-0.5, 0.0], [0.9, 0.0], [0.2, -0.5], [0.0, -0.3], [0.3, 0.0]])
     w = th.tensor([[-1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
-    # Heads Q = (1, 2) * w.a. Row 0: the reference is better (actor -0.5, -1 against 0.5, 1). Row 1: the
-    # reference (0.5, 1 against 0.9, 1.8). Row 2: a tie: the reference. Row 3: the actor (0.3, 0.6
-    # against -0.3, -0.6). Row 4: each head values the actor more (0.4 > 0.3, 0.8 > 0.6), but its lowest
-    # (0.4) is not above the reference's highest (0.6): the reference.
+    # Heads Q = (1, 2) * w.a, smaller head w.a. Row 0: the reference (0.5 against -0.5). Row 1: the
+    # reference (0.9 against 0.5). Row 2: a tie (0.2 each, different actions): the actor. Row 3: the
+    # actor (0.3 against -0.3). Row 4: the actor (0.4 against 0.3).
     chosen = choose(HandCritic(w, (1.0, 2.0)), None, actor, reference)  # type: ignore[arg-type]
-    assert th.equal(chosen, th.stack([reference[0], reference[1], reference[2], actor[3], reference[4]]))
-    # Heads of one scale: row 4's actor now wins (0.4 > 0.3), the others as before.
-    same = choose(HandCritic(w, (1.0, 1.0)), None, actor, reference)  # type: ignore[arg-type]
-    assert th.equal(same, th.stack([reference[0], reference[1], reference[2], actor[3], actor[4]]))
-    # Heads that disagree in sign (Q2 = -3 w.a): the intervals overlap on every row: the reference.
+    assert th.equal(chosen, th.stack([reference[0], reference[1], actor[2], actor[3], actor[4]]))
+    # Heads that disagree in sign (Q2 = -3 w.a): the smaller head is -3 w.a where w.a > 0, else w.a.
+    # Row 0: actor -0.5, reference -1.5: the actor. Row 1: -1.5 against -2.7: the actor. Row 2: a tie.
+    # Row 3: actor -0.9, reference -0.3: the reference. Row 4: actor -1.2, reference -0.9: the reference.
     disagree = choose(HandCritic(w, (1.0, -3.0)), None, actor, reference)  # type: ignore[arg-type]
-    assert th.equal(disagree, reference)
+    assert th.equal(disagree, th.stack([actor[0], actor[1], actor[2], reference[3], reference[4]]))
 
 
 @pytest.fixture(scope="module")
@@ -231,10 +229,20 @@ def test_the_gate_lets_the_choice_act_only_when_measured_strictly_better():
     assert not gate.choice_acts  # too few measured clone episodes
     gate.end_episode(False)
     assert gate.choice_acts and gate.success(CHOICE) == 1.0 and gate.success(CLONE) == 0.0
-    for _ in range(4 * WINDOW):  # both succeed: a tie, and the window forgot the clone's failures
-        gate.end_episode(True)
-    assert len(gate.measured[CLONE]) == WINDOW and gate.success(CLONE) == 1.0
-    assert not gate.choice_acts  # equal is not better: the clone acts
+    while len(gate.measured[CLONE]) < WINDOW:  # the clone succeeds from now on
+        gate.end_episode(gate.kind == CLONE)
+    assert gate.success(CLONE) == (WINDOW - MIN_EPISODES) / WINDOW
+    # Measured once (it is frozen): its place in the cycle now explores, its window stays.
+    kinds = []
+    for _ in range(4 * WINDOW):  # the choice fails: its window forgets its successes
+        kinds.append(gate.kind)
+        gate.end_episode(False)
+    assert kinds[:4] == ["explore", CHOICE, "explore", "explore"] and CLONE not in kinds
+    assert gate.measured[CLONE] == [False] * MIN_EPISODES + [True] * (WINDOW - MIN_EPISODES)
+    assert gate.success(CHOICE) == 0.0 and not gate.choice_acts
+    for _ in range(4 * WINDOW):  # the choice succeeds as often as the clone: equal is not better
+        gate.end_episode(gate.kind == CHOICE and gate.episodes % 8 == 1)
+    assert gate.success(CHOICE) == gate.success(CLONE) == 0.5 and not gate.choice_acts
 
 
 class ObsCritic(nn.Module):

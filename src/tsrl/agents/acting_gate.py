@@ -9,8 +9,9 @@ not rest on it alone. Training episodes cycle through four kinds:
 
 and the success of the last `WINDOW` episodes of each measured kind (the last step's
 info["is_success"], as evaluation counts it) decides: the choice acts where its measured success is
-strictly above the clone's, each measured on at least `MIN_EPISODES`, else the clone. Every episode
-is training data. `GatedTD3` is TD3 with the episode kinds (`_sample_action`) and the bookkeeping at
+strictly above the clone's, each measured on at least `MIN_EPISODES`, else the clone. The clone is
+frozen (and the observation normaliser with it), so it is measured once: after its first `WINDOW`
+episodes its place in the cycle explores. Every episode is training data. `GatedTD3` is TD3 with the episode kinds (`_sample_action`) and the bookkeeping at
 episode ends (`_store_transition`); the decision is the policy's `choice_acts` buffer, so a saved
 policy acts as decided when loaded without its algorithm.
 """
@@ -44,7 +45,8 @@ class ActingGate:
     @property
     def kind(self) -> str:
         """The kind of the episode under way."""
-        return EPISODE_KINDS[self.episodes % len(EPISODE_KINDS)]
+        kind = EPISODE_KINDS[self.episodes % len(EPISODE_KINDS)]
+        return "explore" if kind == CLONE and len(self.measured[CLONE]) == WINDOW else kind
 
     def end_episode(self, success: bool) -> None:
         if self.kind in self.measured:

@@ -2,18 +2,19 @@
 
 The fast learner's policy keeps its behaviour clone frozen (`reference`), trained as a BC run trains
 its actor (tsrl.agents.bc: dropout after each hidden layer, off when it acts). Wherever TD3 takes the
-actor's action, it takes instead, per row, the actor's only where every head of the critic values it
-above every head's value of the clone's (the heads agree that it is better):
+actor's action, it takes instead, per row, the proposal the critic's smaller twin head values more
+(IBRL's argmax over the proposals, with TD3's clipped double-Q estimate):
 
-    a(s) = actor(s) if min_i Q_i(s, actor(s)) > max_i Q_i(s, reference(s)) else reference(s)
+    a(s) = reference(s) if min_i Q_i(s, reference(s)) > min_i Q_i(s, actor(s)) else actor(s)
 
 - acting and evaluation (the policy's `_predict`, and so the export): the critic's twin heads;
 - the TD target (TD3's `actor_target`): the target critic's twin heads on the target actor's and the
   reference's proposals, before TD3's target smoothing noise is added to the chosen one.
 
-Where the heads disagree, the clone acts: a run leaves its clone only where the critic is sure, and
-the actor is free to climb. Whether this choice or the clone alone is the policy's deterministic
-action is decided by measured episodes (tsrl.agents.acting_gate; the `choice_acts` buffer). The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos).
+The critic can be sure and wrong about the actor's action on the steps that decide an episode, so
+whether this choice or the clone alone is the policy's deterministic action is decided by measured
+episodes (tsrl.agents.acting_gate; the `choice_acts` buffer). The actor's own loss is TD3's (with the
+BC anchor of tsrl.agents.demos).
 `ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
 of the policy's state dict (checkpoints keep it).
 """
@@ -43,11 +44,11 @@ def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
 def choose(
     critic: nn.Module, obs: PyTorchObs, actor_actions: th.Tensor, reference_actions: th.Tensor
 ) -> th.Tensor:
-    """(n, k): per row, the actor's action where its smallest head is strictly above the reference's
-    largest, else the reference's."""
+    """(n, k): per row, the reference's action where the smaller of its heads is strictly above the
+    smaller of the actor's, else the actor's."""
     actor_low = heads(critic, obs, actor_actions).min(dim=1, keepdim=True).values
-    reference_high = heads(critic, obs, reference_actions).max(dim=1, keepdim=True).values
-    return th.where(actor_low > reference_high, actor_actions, reference_actions)
+    reference_low = heads(critic, obs, reference_actions).min(dim=1, keepdim=True).values
+    return th.where(reference_low > actor_low, reference_actions, actor_actions)
 
 
 class ChosenTarget(nn.Module):
