@@ -364,10 +364,10 @@ def test_q_filter_masks_rows_where_the_actor_is_rated_higher():
     demo = th.tensor([[1.0, 0.0], [0.0, 0.0], [0.5, 0.5], [0.2, 0.2]])
     q_demo = th.tensor([[2.0], [1.0], [3.0], [0.0]])
     q_actor = th.tensor([[1.0], [1.0], [4.0], [-1.0]])  # demo better, tie, actor better, demo better
-    loss, mask = q_filtered_bc_loss(actor, demo, q_demo, q_actor, q_filter=True)
+    loss, mask = q_filtered_bc_loss(actor, demo, (q_demo, q_actor))
     assert mask.tolist() == [True, False, False, True]
     assert loss.item() == pytest.approx((1.0 + 0.0) / 4)  # mean over all 4 rows of the masked errors
-    loss, mask = q_filtered_bc_loss(actor, demo, q_demo, q_actor, q_filter=False)
+    loss, mask = q_filtered_bc_loss(actor, demo)
     assert mask.all() and loss.item() == pytest.approx((1.0 + 2.0 + 1.0 + 0.0) / 4)
 
 
@@ -389,9 +389,7 @@ def test_actor_step_follows_the_gradient_of_actor_loss_plus_weighted_bc(reach_de
     # Expected: grad of (actor_loss + weight * L_BC) with SB3's actor loss stand-in -mean Q1(s, pi(s)).
     obs = demo.observations
     actor.optimizer.zero_grad()
-    with th.no_grad():
-        q_demo, q_pi = critic.q1_forward(obs, demo.actions), critic.q1_forward(obs, pi(obs))
-    bc, _ = q_filtered_bc_loss(pi(obs), demo.actions, q_demo, q_pi, q_filter=False)
+    bc, _ = q_filtered_bc_loss(pi(obs), demo.actions)
     (-critic.q1_forward(obs, pi(obs)).mean() + weight * bc).backward()
     expected = grads(params)
     # Actual: the actor loss alone backward, then the hooked optimizer step (grads captured before Adam).

@@ -185,11 +185,13 @@ def load_run_demos(cfg: DemoConfig, venv: VecEnv, normalizer: VecNormalize | Non
 
 
 def q_filtered_bc_loss(
-    actor_actions: th.Tensor, demo_actions: th.Tensor, q_demo: th.Tensor, q_actor: th.Tensor, q_filter: bool
+    actor_actions: th.Tensor, demo_actions: th.Tensor, q_values: tuple[th.Tensor, th.Tensor] | None = None
 ) -> tuple[th.Tensor, th.Tensor]:
-    """(L_BC, mask): actions (n, k), Q values (n, 1) -> scalar mean over the n rows of
-    mask * ||pi(s) - a||^2, and the (n,) bool mask (Q(s, a_demo) > Q(s, pi(s)), or all True)."""
-    if q_filter:
+    """(L_BC, mask): actions (n, k) and, for the Q filter, `q_values` (Q(s, a_demo), Q(s, pi(s))),
+    each (n, 1) -> scalar mean over the n rows of mask * ||pi(s) - a||^2, and the (n,) bool mask
+    (Q(s, a_demo) > Q(s, pi(s)); all True without `q_values`)."""
+    if q_values is not None:
+        q_demo, q_actor = q_values
         mask = (q_demo > q_actor).reshape(-1)
     else:
         mask = th.ones(demo_actions.shape[0], dtype=th.bool, device=demo_actions.device)
@@ -232,10 +234,14 @@ class BCLoss:
             self._scale_q_gradient(critic, buffer.last_batch.observations)
         with th.enable_grad():
             pi = actor_action(self.model, demo.observations)
-            with th.no_grad():
-                q_demo = first_q(critic, demo.observations, demo.actions)
-                q_actor = first_q(critic, demo.observations, pi)
-            loss, mask = q_filtered_bc_loss(pi, demo.actions, q_demo, q_actor, self.q_filter)
+            q_values = None
+            if self.q_filter:  # the critic's values only where they decide
+                with th.no_grad():
+                    q_values = (
+                        first_q(critic, demo.observations, demo.actions),
+                        first_q(critic, demo.observations, pi),
+                    )
+            loss, mask = q_filtered_bc_loss(pi, demo.actions, q_values)
             (self.weight * loss).backward()
         self.model.logger.record("train/bc_loss", loss.item())
         self.model.logger.record("train/q_filter_pass", mask.float().mean().item())
