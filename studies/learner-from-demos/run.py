@@ -78,6 +78,16 @@ def budget(task: str, n: int) -> int:
     return 60_000 if (task, n) == ("PandaPickPlaceGripper-v0", 10) else BUDGETS[task]
 
 
+def demo_count(arm: str) -> int:
+    """The demonstrations an arm learns from: the number its name ends in (bc100 -> 100)."""
+    digits = arm.lstrip("abcdefghijklmnopqrstuvwxyz")
+    if not digits.isdigit():
+        raise SystemExit(
+            f"arm {arm!r} names no number of demonstrations; accepted: bc100, bc10, igate100, igate10"
+        )
+    return int(digits)
+
+
 def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
     demo_cfg = DemoConfig(path=str(demos))
     if arm.startswith("bc"):
@@ -89,7 +99,7 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
     if arm.startswith("igate"):
         agent = AgentConfig(learner="fast", demos=demo_cfg)
         return TrainConfig(
-            env_id=f"tsrl/{task}", seed=seed, total_timesteps=budget(task, int(arm.removeprefix("igate"))),
+            env_id=f"tsrl/{task}", seed=seed, total_timesteps=budget(task, demo_count(arm)),
             eval_freq=EVAL_FREQ.get(task, 2_500),
             eval_episodes=EVAL_EPISODES, checkpoint_freq=5_000, agent=agent,
         )  # fmt: skip
@@ -143,8 +153,8 @@ def commit() -> str:
 
 
 def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
-    n = int(arm.lstrip("abcdefghijklmnopqrstuvwxyz") or "0")
-    demos = demo_file(out, task, n)
+    arm_config(arm, task, seeds[0], Path())  # an unknown or old arm is refused before any recording
+    demos = demo_file(out, task, demo_count(arm))
     done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
     for seed in seeds:
         if (task, arm, str(seed)) in done:

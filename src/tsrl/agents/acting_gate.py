@@ -11,9 +11,10 @@ and the success of the last `WINDOW` episodes of each measured kind (the last st
 info["is_success"], as evaluation counts it) decides: the choice acts where its measured success is
 strictly above the clone's, each measured on at least `MIN_EPISODES`, else the clone. The clone is
 frozen (and the observation normaliser with it), so it is measured once: after its first `WINDOW`
-episodes its place in the cycle explores. Every episode is training data. `GatedTD3` is TD3 with the episode kinds (`_sample_action`) and the bookkeeping at
-episode ends (`_store_transition`); the decision is the policy's `choice_acts` buffer, so a saved
-policy acts as decided when loaded without its algorithm.
+episodes its place in the cycle explores. Every episode is training data. `GatedTD3` is TD3 with the
+episode kinds (`_sample_action`) and the bookkeeping at episode ends (`_store_transition`); the
+decision is the policy's `choice_acts` buffer, so a saved policy acts as decided when loaded without
+its algorithm.
 """
 
 from __future__ import annotations
