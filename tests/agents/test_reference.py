@@ -1,9 +1,8 @@
-"""The fast learner's reference (IBRL, tsrl.agents.reference, issue 55): per row, the proposal (actor's
-or reference's) whose smaller twin-critic value is higher, the actor's on a tie, in exploring, in the
-TD target, and in the kept snapshot that acts deterministically (predict, evaluation, the export); the
+"""The fast learner's reference (IBRL, tsrl.agents.reference, issue 55): per row, the actor's proposal
+is taken only where its smallest twin-critic value is above the reference's largest, else the
+reference's, in acting (predict, and so evaluation), in the TD target, and in the exported policy; the
 reference is a BC clone with dropout (off when it acts) and stays the clone through training and
-checkpoints; the normaliser keeps the demonstrations' statistics; the acting gate keeps a snapshot
-only when a sequential test measures it better (tsrl.agents.acting_gate)."""
+checkpoints; the normaliser keeps the demonstrations' statistics."""
 
 from __future__ import annotations
 
@@ -19,28 +18,11 @@ from torch import nn
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
-from tsrl.agents.acting_gate import (
-    EPISODE_KINDS,
-    KEPT_EPISODES,
-    MAX_CANDIDATE,
-    MIN_TO_DROP,
-    MIN_TO_KEEP,
-    ActingGate,
-    GatedTD3,
-    prob_better,
-)
+from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingGate, GatedTD3
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import save_demos
 from tsrl.agents.demonstrators import record_demos
-from tsrl.agents.reference import (
-    CANDIDATE,
-    EXPLORE,
-    KEPT,
-    ChosenTarget,
-    ReferenceTD3Policy,
-    choose,
-)
-from tsrl.exceptions import InvalidConfig
+from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, choose
 
 REACH = "tsrl/UR5eReach-v0"
 
@@ -101,7 +83,7 @@ def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
     return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
 
 
-def test_exploring_and_the_td_target_take_the_critics_choice_and_the_kept_snapshot_acts(reach_demos):
+def test_acting_and_the_td_target_take_the_critics_choice(reach_demos):
     cfg = fast(reach_demos)
     model = make_agent(cfg, make_vec_env(cfg))
     policy = model.policy
@@ -119,22 +101,13 @@ def test_exploring_and_the_td_target_take_the_critics_choice_and_the_kept_snapsh
     clone = -0.5 * th.ones(64, model.action_space.shape[0])  # type: ignore[index]
     with th.no_grad():
         assert th.equal(model.actor_target(obs), expected)  # the TD target: always the choice
-        assert th.equal(policy._predict(obs, deterministic=True), clone)  # nothing kept yet: the clone
-        policy.episode_policy = EXPLORE  # the learning choice (TD3 adds the noise)
-        assert th.equal(policy._predict(obs, deterministic=True), expected)
-        policy.episode_policy = None
-        for snapshot in (policy.kept, policy.candidate):  # as the gate takes and keeps them
-            snapshot.take(policy.actor, policy.critic)
-            snapshot.critic.forward = policy.critic.forward  # type: ignore[method-assign]
+        assert th.equal(
+            policy._predict(obs, deterministic=True), clone
+        )  # before the gate lets the choice act
         policy.choice_acts.fill_(True)
         assert th.equal(policy._predict(obs, deterministic=True), expected)
-        _set_constant(policy.actor, -0.2)  # the actor learns on: the kept snapshot does not move
-        assert th.equal(policy._predict(obs, deterministic=True), expected)
-        policy.episode_policy = CANDIDATE
-        assert th.equal(policy._predict(obs, deterministic=True), expected)
-        policy.episode_policy = EXPLORE
-        learning = th.where(sign > 0, -0.2, -0.5) * th.ones_like(clone)  # the actor's where sign > 0
-        assert th.allclose(policy._predict(obs, deterministic=True), learning, rtol=0, atol=1e-6)
+        policy.episode_policy = CLONE  # a measuring episode of the clone overrides the gate
+        assert th.equal(policy._predict(obs, deterministic=True), clone)
         policy.episode_policy = None
     actions, _ = model.predict({k: v.numpy() for k, v in obs.items()}, deterministic=True)
     np.testing.assert_array_equal(actions, expected.numpy())
@@ -189,8 +162,7 @@ def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
     with th.no_grad():  # an actor that has moved away from its clone: the two proposals differ
         for p in model.policy.actor.parameters():
             p.add_(0.3 * th.randn_like(p))
-    model.policy.kept.take(model.policy.actor, model.policy.critic)  # as the gate keeps a snapshot
-    model.policy.choice_acts.fill_(True)
+    model.policy.choice_acts.fill_(True)  # as the gate sets it once the choice measured better
     out = tmp_path / "export"
     export_policy(model, venv, cfg, out, None, None, None)
     contract = read_contract(out)
@@ -218,6 +190,7 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
     from tsrl.agents.checkpoint import load_policy, usable_checkpoint
     from tsrl.agents.learners import LayerNormTD3Policy
     from tsrl.agents.run_folder import checkpoint_dirs
+    from tsrl.exceptions import InvalidConfig
 
     cfg = dataclasses_replace(
         fast(reach_demos, warmup=0), total_timesteps=400, checkpoint_freq=200, eval_freq=200
@@ -230,7 +203,7 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
         resume(copy, progress_bar=False)
     policies = [load_policy(usable_checkpoint(d, True, False), TD3)[0].policy for d in (run_dir, *copies)]  # type: ignore[arg-type]
     # Deterministic given the checkpoint (as every run: the env restarts with a new episode on resume).
-    for module in ("actor", "reference", "critic", "kept", "candidate"):
+    for module in ("actor", "reference", "critic"):
         pairs = zip(*(getattr(p, module).parameters() for p in policies[1:]), strict=True)
         assert all(th.equal(a, b) for a, b in pairs), module
     # The reference came back with the checkpoint and is still the clone of the uninterrupted run.
@@ -243,60 +216,33 @@ def test_a_killed_run_resumes_with_its_reference_deterministically_and_an_old_ru
     assert type(load_policy(usable_checkpoint(old, True, False), TD3)[0].policy) is LayerNormTD3Policy  # type: ignore[arg-type]
     with pytest.raises(InvalidConfig, match="tsrl 0.2.0"):
         resume(old, total_timesteps=600, progress_bar=False)
-    # A fast policy saved before its kept snapshot (commit ef4c768 or older) is refused in one line.
-    state = {k: v for k, v in policies[0].state_dict().items() if not k.startswith(("kept.", "candidate."))}
-    with pytest.raises(InvalidConfig, match="before its kept snapshot"):
-        policies[0].load_state_dict(state)
 
 
-def test_prob_better_is_the_posterior_probability_of_a_higher_success_rate():
-    from scipy import integrate, stats
-
-    for a, b in (([True] * 8 + [False] * 2, [True] * 11 + [False] * 9), ([True] * 19 + [False], [True] * 40)):
-        pa = stats.beta(1 + sum(a), 1 + len(a) - sum(a))
-        pb = stats.beta(1 + sum(b), 1 + len(b) - sum(b))
-        numeric = integrate.quad(lambda x: pa.pdf(x) * pb.cdf(x), 0, 1)[0]  # noqa: B023
-        assert prob_better(a, b) == pytest.approx(numeric, abs=1e-6)
-        assert prob_better(a, b) + prob_better(b, a) == pytest.approx(1.0)  # no ties for continuous rates
-    assert prob_better([True, False] * 5, [True, False] * 5) == pytest.approx(0.5)
-    assert prob_better([], []) == pytest.approx(0.5)
-
-
-def _run(gate: ActingGate, episodes: int, succeeds: dict[str, bool]) -> tuple[list[str], int]:
-    """End `episodes` episodes, an episode of kind k succeeding as succeeds[k], taking a candidate
-    snapshot where GatedTD3 does: the kinds in order and the snapshots taken."""
-    kinds, taken = [], 0
-    for _ in range(episodes):
-        if gate.kind == CANDIDATE and gate.candidate is None:
-            gate.candidate, taken = [], taken + 1
-        kinds.append(gate.kind)
-        gate.end_episode(succeeds.get(gate.kind, False))
-    return kinds, taken
-
-
-def test_the_gate_keeps_a_candidate_only_when_measured_better_and_never_goes_back():
+def test_the_gate_lets_the_choice_act_only_when_measured_strictly_better():
     gate = ActingGate()
-    # The candidate succeeds, the clone (kept) fails: kept once both are measured MIN_TO_KEEP times.
-    kinds, _ = _run(gate, 4 * MIN_TO_KEEP, {CANDIDATE: True})
-    assert kinds[:4] == list(EPISODE_KINDS) == [EXPLORE, CANDIDATE, EXPLORE, KEPT]
-    assert gate.snapshots_kept == 0 and not gate.choice_acts  # at its 10th, the clone had 9 measured
-    _run(gate, 2, {CANDIDATE: True})  # the candidate's 11th episode, the clone's 10th before it
-    assert gate.snapshots_kept == 1 and gate.choice_acts and gate.candidate is None
-    assert gate.kept == [True] * (MIN_TO_KEEP + 1) and gate.kept_episodes == 0  # its measures came with it
-    # The new kept policy is measured KEPT_EPISODES times in its place, which then explores; the
-    # candidates fail and are dropped after MIN_TO_DROP episodes each: the kept policy stays.
-    kinds, taken = _run(gate, 4 * KEPT_EPISODES + 20 * MIN_TO_DROP + 2, {KEPT: True})
-    assert kinds.count(KEPT) == KEPT_EPISODES and kinds[-4:] == [EXPLORE, CANDIDATE, EXPLORE, EXPLORE]
-    assert gate.kept == [True] * (MIN_TO_KEEP + 1 + KEPT_EPISODES) and gate.snapshots_kept == 1
-    assert kinds.count(CANDIDATE) == MIN_TO_DROP * taken and taken > 1 and gate.candidate is None
-    # A candidate as good as the kept policy is not kept: dropped undecided after MAX_CANDIDATE.
-    gate = ActingGate(episodes=1, kept=[True, False] * 20, kept_episodes=KEPT_EPISODES, snapshots_kept=1)
-    gate.candidate = []
-    for i in range(MAX_CANDIDATE):
-        assert gate.kind == CANDIDATE
-        gate.end_episode(i % 2 == 0)
-        assert gate.snapshots_kept == 1 and (gate.candidate is None) == (i == MAX_CANDIDATE - 1), i
-        gate.episodes += 3  # the explore, explore and (measured out) kept places in between
+    kinds = []
+    for _ in range(4 * MIN_EPISODES - 1):  # one clone episode short of MIN_EPISODES each
+        kinds.append(gate.kind)
+        gate.end_episode(gate.kind == CHOICE)  # the choice succeeds, the clone fails
+    assert kinds[:4] == list(EPISODE_KINDS) == ["explore", CHOICE, "explore", CLONE]
+    assert len(gate.measured[CHOICE]) == MIN_EPISODES and len(gate.measured[CLONE]) == MIN_EPISODES - 1
+    assert not gate.choice_acts  # too few measured clone episodes
+    gate.end_episode(False)
+    assert gate.choice_acts and gate.success(CHOICE) == 1.0 and gate.success(CLONE) == 0.0
+    while len(gate.measured[CLONE]) < WINDOW:  # the clone succeeds from now on
+        gate.end_episode(gate.kind == CLONE)
+    assert gate.success(CLONE) == (WINDOW - MIN_EPISODES) / WINDOW
+    # Measured once (it is frozen): its place in the cycle now explores, its window stays.
+    kinds = []
+    for _ in range(4 * WINDOW):  # the choice fails: its window forgets its successes
+        kinds.append(gate.kind)
+        gate.end_episode(False)
+    assert kinds[:4] == ["explore", CHOICE, "explore", "explore"] and CLONE not in kinds
+    assert gate.measured[CLONE] == [False] * MIN_EPISODES + [True] * (WINDOW - MIN_EPISODES)
+    assert gate.success(CHOICE) == 0.0 and not gate.choice_acts
+    for _ in range(4 * WINDOW):  # the choice succeeds as often as the clone: equal is not better
+        gate.end_episode(gate.kind == CHOICE and gate.episodes % 8 == 1)
+    assert gate.success(CHOICE) == gate.success(CLONE) == 0.5 and not gate.choice_acts
 
 
 class ObsCritic(nn.Module):
@@ -318,19 +264,14 @@ def test_training_episodes_cycle_through_the_kinds_and_the_decision_is_saved_wit
     policy = model.policy
     _set_constant(policy.actor, 0.5)
     _set_constant(policy.reference, -0.5)
-    for critic in (policy.critic, policy.candidate.critic):  # the candidate snapshot's too
-        critic.forward = ObsCritic().forward  # type: ignore[method-assign]
+    policy.critic.forward = ObsCritic().forward  # type: ignore[method-assign]
     model.train = lambda *args, **kwargs: None  # type: ignore[method-assign]  # networks fixed: known choices
     model.set_logger(configure(None, []))
     model.learn(cfg.total_timesteps)
     steps = int(venv.get_attr("spec")[0].max_episode_steps)
     episodes = cfg.total_timesteps // steps
     assert model.gate.episodes == episodes >= 8
-    assert (
-        model.gate.candidate is not None
-        and len(model.gate.candidate) == len(model.gate.kept) == episodes // 4
-    )
-    assert model.gate.snapshots_kept == 0  # too few measured to keep the candidate
+    assert len(model.gate.measured[CHOICE]) == len(model.gate.measured[CLONE]) == episodes // 4
     buffer = model.replay_buffer
     for episode in range(episodes):
         rows = slice(episode * steps, (episode + 1) * steps)
@@ -338,20 +279,17 @@ def test_training_episodes_cycle_through_the_kinds_and_the_decision_is_saved_wit
             :, :1
         ]
         choice = np.where(first > 0, 0.5, -0.5) * np.ones_like(buffer.actions[rows, 0])
-        acted = {KEPT: np.full_like(choice, -0.5), CANDIDATE: choice}  # nothing kept: the clone
+        acted = {CLONE: np.full_like(choice, -0.5), CHOICE: choice}
         kind = EPISODE_KINDS[episode % 4]
-        if kind == EXPLORE:  # the learning choice plus noise
+        if kind == "explore":  # the choice plus noise
             assert not np.allclose(buffer.actions[rows, 0], choice, atol=1e-6), episode
         else:  # no noise: exactly the measured policy's action
             np.testing.assert_allclose(buffer.actions[rows, 0], acted[kind], atol=1e-6, err_msg=str(episode))
     assert (buffer.actions[: episodes * steps] > 0).any()  # the actor acted somewhere: the test can fail
-    policy.kept.take(policy.actor, policy.critic)  # as if the candidate had measured better
-    policy.choice_acts.fill_(True)
+    policy.choice_acts.fill_(True)  # as if the choice had measured better
     model.save(tmp_path / "model.zip")
     loaded = TD3.load(
         tmp_path / "model.zip",
         custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
     )
     assert bool(loaded.policy.choice_acts) and loaded.gate.episodes == episodes
-    pairs = zip(loaded.policy.kept.parameters(), policy.actor.parameters(), strict=False)
-    assert all(th.equal(a, b) for a, b in pairs)  # the kept snapshot came back with the policy

@@ -11,34 +11,29 @@ actor's action, it takes instead, per row, the proposal the critic's smaller twi
 - the TD target (TD3's `actor_target`): the target critic's twin heads on the target actor's and the
   reference's proposals, before TD3's target smoothing noise is added to the chosen one.
 
-The critic can be sure and wrong about the actor's action on the steps that decide an episode, and
-the actor drifts as it learns, so the policy's deterministic action is not the learning choice: it
-is a frozen `ChoiceSnapshot` (an earlier actor and critic, choosing against the clone) where the
-`choice_acts` buffer is True, else the clone alone, decided by measured episodes
-(tsrl.agents.acting_gate). The actor's own loss is TD3's (with the BC anchor of tsrl.agents.demos).
+The critic can be sure and wrong about the actor's action on the steps that decide an episode, so
+whether this choice or the clone alone is the policy's deterministic action is decided by measured
+episodes (tsrl.agents.acting_gate; the `choice_acts` buffer). The actor's own loss is TD3's (with the
+BC anchor of tsrl.agents.demos).
 `ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
 of the policy's state dict (checkpoints keep it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import torch as th
 from stable_baselines3.common.type_aliases import PyTorchObs
 from torch import nn
 
-from ..exceptions import InvalidConfig
 from .bc import with_dropout
 from .learners import LayerNormTD3Policy
 
-EXPLORE = "explore"
-"""A training episode of the learning choice (`choose` between the actor and the clone) plus noise."""
-CANDIDATE = "candidate"
-"""A training episode of the candidate snapshot, without noise: it is being measured."""
-KEPT = "kept"
-"""A training episode of the deterministic policy (the kept snapshot, or the clone), without noise."""
+CHOICE = "choice"
+"""The policy that acts by `choose` between actor and clone."""
+CLONE = "clone"
+"""The policy that acts by the clone alone."""
 
 
 def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
@@ -79,34 +74,15 @@ class ChosenTarget(nn.Module):
         return chosen
 
 
-class ChoiceSnapshot(nn.Module):
-    """A frozen copy of an actor and its critic: acts by `choose` between that actor's proposal and
-    the clone's, valued by that critic."""
-
-    def __init__(self, actor: nn.Module, critic: nn.Module):
-        super().__init__()
-        self.actor, self.critic = actor, critic
-        self.requires_grad_(False)
-
-    def take(self, actor: nn.Module, critic: nn.Module) -> None:
-        """Copy `actor` and `critic` (the learning ones) into the snapshot."""
-        self.actor.load_state_dict(actor.state_dict())
-        self.critic.load_state_dict(critic.state_dict())
-
-    def forward(self, obs: PyTorchObs, clone_actions: th.Tensor) -> th.Tensor:
-        return choose(self.critic, obs, self.actor(obs), clone_actions)
-
-
 class ReferenceTD3Policy(LayerNormTD3Policy):
     """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor with
     dropout `reference_dropout` after each hidden layer (as BC's), which the critic chooses against in
     acting and in the TD target (module docstring). The reference starts as the actor;
     tsrl.agents.bc.pretrain_actor clones the demonstrations into it and copies it into the actors.
 
-    Its deterministic action is the `kept` snapshot's choice where the `choice_acts` buffer (a ()
-    bool tensor) is True, else the clone's; `episode_policy` (EXPLORE: the learning choice; CANDIDATE:
-    the `candidate` snapshot's choice), where set, overrides it for a training episode
-    (tsrl.agents.acting_gate). Both snapshots and the buffer are in the state dict."""
+    It acts by the choice where the `choice_acts` buffer (a () bool tensor, in the state dict) is
+    True, else by the clone alone; `episode_policy` (CHOICE or CLONE), where set, overrides it for a
+    training episode (tsrl.agents.acting_gate)."""
 
     reference_dropout: float
     choice_acts: th.Tensor
@@ -125,10 +101,6 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
                 to.copy_(source)
         self.reference.requires_grad_(False)
         self.reference.set_training_mode(False)
-        self.kept = ChoiceSnapshot(self.make_actor(None), self.make_critic(None))
-        self.candidate = ChoiceSnapshot(self.make_actor(None), self.make_critic(None))
-        for snapshot in (self.kept, self.candidate):
-            snapshot.take(self.actor, self.critic)
         self.register_buffer("choice_acts", th.tensor(False))
         # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
         self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
@@ -141,22 +113,11 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
     def _get_constructor_parameters(self) -> dict[str, Any]:
         return super()._get_constructor_parameters() | {"reference_dropout": self.reference_dropout}
 
-    def load_state_dict(
-        self, state_dict: Mapping[str, Any], strict: bool = True, assign: bool = False
-    ) -> Any:
-        """nn.Module's, refusing in one line a policy saved before the snapshots were kept."""
-        if strict and not any(key.startswith("kept.") for key in state_dict):
-            raise InvalidConfig(
-                "a --learner fast policy saved by tsrl before its kept snapshot (commit ef4c768 or older); "
-                "accepted: evaluate or resume it at the commit it was trained at"
-            )
-        return super().load_state_dict(state_dict, strict, assign)
-
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         clone = self.reference(observation)
-        if self.episode_policy == EXPLORE:
-            return choose(self.critic, observation, self.actor(observation), clone)
-        if self.episode_policy == CANDIDATE:
-            return self.candidate(observation, clone)
-        # a tensor, not a Python branch: exports as such
-        return th.where(self.choice_acts, self.kept(observation, clone), clone)
+        if self.episode_policy == CLONE:
+            return clone
+        chosen = choose(self.critic, observation, self.actor(observation), clone)
+        if self.episode_policy == CHOICE:
+            return chosen
+        return th.where(self.choice_acts, chosen, clone)  # a tensor, not a Python branch: exports as such

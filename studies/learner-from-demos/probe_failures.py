@@ -1,0 +1,109 @@
+"""A probe of the fast learner's failures: for the newest checkpoint of each run, the policy as it acts,
+its actor alone and its clone alone on the run's own 100 evaluation seeds, with each failed episode
+put in one class by the goal distance over its steps (info["distance"], the success radius r):
+
+- left: within r at some step, not at the last (reached, then pushed or carried away);
+- near: the last distance in (r, 2r];
+- late: the distance still falling over the last 10 steps (by more than r/2), the last above 2r;
+- stuck: otherwise (the distance not falling at the end, above 2r).
+
+    python studies/learner-from-demos/probe_failures.py RUN_DIR [RUN_DIR ...] [--episodes 100]
+
+Prints one table row per run and policy. A probe, not a screen: it looks for the cause of a plateau.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents.checkpoint import load_policy, verify_checkpoint
+from tsrl.agents.evaluation import eval_seeds
+from tsrl.agents.factory import ALGO_CLASSES, make_env
+from tsrl.agents.run_folder import checkpoint_dirs, load_config
+
+CLASSES = ("left", "near", "late", "stuck")
+
+
+def episodes(model: Any, normalizer: Any, cfg: Any, seeds: list[int]) -> list[tuple[bool, list[float]]]:
+    """(success at the last step, goal distance per step) per seed, deterministically, side by side."""
+    envs = [make_env(cfg) for _ in seeds]
+    obs = [env.reset(seed=s)[0] for env, s in zip(envs, seeds, strict=True)]
+    distances: list[list[float]] = [[] for _ in seeds]
+    success = [False] * len(seeds)
+    active = list(range(len(seeds)))
+    while active:
+        batch: Any = {k: np.stack([obs[i][k] for i in active]) for k in obs[0]}
+        if normalizer is not None:
+            batch = normalizer.normalize_obs(batch)
+        actions, _ = model.predict(batch, deterministic=True)
+        still = []
+        for i, action in zip(active, actions, strict=True):
+            obs[i], _, terminated, truncated, info = envs[i].step(action)
+            distances[i].append(float(info["distance"]))
+            if terminated or truncated:
+                success[i] = bool(info["is_success"])
+            else:
+                still.append(i)
+        active = still
+    for env in envs:
+        env.close()
+    return list(zip(success, distances, strict=True))
+
+
+def failure_class(distances: list[float], radius: float) -> str:
+    d = np.asarray(distances)
+    if (d <= radius).any():
+        return "left"
+    if d[-1] <= 2 * radius:
+        return "near"
+    if len(d) > 10 and d[-11] - d[-1] > radius / 2:
+        return "late"
+    return "stuck"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dirs", type=Path, nargs="+")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--radius", type=float, default=0.05, help="the task's success radius [m]")
+    args = parser.parse_args()
+    print(
+        "| run | env steps | policy | success | "
+        + " | ".join(CLASSES)
+        + " | median last distance of failures [m] |"
+    )
+    print("| --- | ---: | --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |")
+    for run_dir in args.run_dirs:
+        cfg = load_config(run_dir)
+        seeds = eval_seeds(cfg.seed, args.episodes)
+        checkpoint = verify_checkpoint(checkpoint_dirs(run_dir)[-1], cfg.agent.normalize, for_training=False)
+        model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+        policy = model.policy
+        acting = policy._predict
+        for name in ("acting", "actor", "reference"):
+            if name == "acting":
+                policy._predict = acting  # type: ignore[method-assign]
+            else:
+                net = getattr(policy, name)
+                policy._predict = lambda obs, deterministic=False, net=net: net(obs)  # type: ignore[method-assign]
+            results = episodes(model, normalizer, cfg, seeds)
+            failed = [d for ok, d in results if not ok]
+            classes = Counter(failure_class(d, args.radius) for d in failed)
+            last = float(np.median([d[-1] for d in failed])) if failed else float("nan")
+            print(
+                f"| {run_dir.name[-30:]} | {checkpoint.state.env_steps:,} | {name} | "
+                f"{np.mean([ok for ok, _ in results]):.2f} | "
+                + " | ".join(str(classes[c]) for c in CLASSES)
+                + f" | {last:.3f} |",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
