@@ -41,11 +41,33 @@ def test_the_fast_preset_resolves_and_given_options_win(reach_demos):
     a = fast(reach_demos).agent
     assert (a.algo, a.gamma, a.learning_starts, a.action_noise) == ("td3", 0.98, 0, 0.1)
     assert (a.demos.bc_anchor, a.demos.bc_anchor_warmup, a.layer_norm) == (0.25, 2_500, "critic")
-    given = fast(reach_demos, algo="ddpg", gamma=0.95).agent
-    assert (given.algo, given.gamma) == ("ddpg", 0.95)
+    assert a.reward_scale == 0.5 and fast(reach_demos).env_kwargs["reward_scale"] == 0.5
+    given = fast(reach_demos, algo="ddpg", gamma=0.95, reward_scale=1.0)
+    assert (given.agent.algo, given.agent.gamma, given.agent.reward_scale) == ("ddpg", 0.95, 1.0)
+    assert "reward_scale" not in given.env_kwargs  # the task's reward: gym.make as before
     paper = AgentConfig()
     assert (paper.algo, paper.gamma, paper.learning_starts, paper.action_noise) == ("ddpg", 0.95, 500, 0.2)
-    assert paper.demos.bc_anchor is None
+    assert paper.demos.bc_anchor is None and paper.reward_scale == 1.0
+
+
+def test_demonstrations_learn_under_the_runs_reward_scale_and_their_file_keeps_the_tasks(reach_demos):
+    from tsrl.agents.demo_files import demo_record
+    from tsrl.agents.demos import load_run_demos
+
+    cfg = fast(reach_demos)
+    assert demo_record(cfg) is not None  # the file's rewards are checked against the task's reward
+    venv = make_vec_env(cfg)
+    learned = load_run_demos(cfg.agent.demos, venv, None)
+    stored = load_demos(reach_demos)
+    env = venv.envs[0].unwrapped  # type: ignore[attr-defined]
+    g = stored.achieved_goal.shape[2]
+    after = stored.achieved_goal[:, 1:].reshape(-1, g), stored.desired_goal[:, 1:].reshape(-1, g)
+    distance = np.linalg.norm(after[0] - after[1], axis=1).reshape(stored.rewards.shape)
+    np.testing.assert_array_equal(stored.rewards, distance < 0.05)  # the task's (UR5eReach: 5 cm)
+    np.testing.assert_array_equal(learned.rewards, distance < 0.025)  # the run's: half of it
+    assert learned.rewards.dtype == stored.rewards.dtype
+    assert ((distance >= 0.025) & (distance < 0.05)).any()  # steps rewarded only by the task: can fail
+    assert env.compute_reward(*after, None).reshape(stored.rewards.shape).tolist() == learned.rewards.tolist()
 
 
 def test_the_fast_actor_starts_as_behaviour_cloning_of_the_demonstrations(reach_demos):

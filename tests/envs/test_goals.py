@@ -230,3 +230,57 @@ def test_a_fixture_moves_with_the_goal_and_must_be_a_mocap_body(tmp_path):
     bad = dataclasses.replace(task, fixtures=(dataclasses.replace(task.fixtures[0], body="peg"),))
     with pytest.raises(InvalidConfig, match="fixture body 'peg' must be a mocap body"):
         TaskEnv(bad)
+
+
+def test_the_reward_scale_rewards_only_within_its_fraction_and_success_stays_at_the_tolerance(tmp_path):
+    env = TaskEnv(_two_box_task(tmp_path), reward_scale=0.5)  # tolerance 0.02 m: rewarded within 0.01
+    goal = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.04])
+    cases = {0.009: (True, True), 0.011: (True, False), 0.019: (True, False), 0.021: (False, False)}
+    for d, (success, rewarded) in cases.items():
+        achieved = goal + [d, 0, 0, 0, 0.5 * d, 0]
+        reward, info = env.goal.outcome(achieved, goal)
+        assert info["is_success"] is success and bool(env.goal.success(achieved, goal)) is success, d
+        assert (
+            reward
+            == float(rewarded)
+            == env.goal.reward(achieved, goal)
+            == env.compute_reward(achieved, goal, info)
+        )
+        assert env.goal.task_reward(achieved, goal) == float(success)  # what a demonstration file stores
+    # Batched as HER relabels, and the same at scale 1 as the task's reward (nothing changes there).
+    rng = np.random.default_rng(0)
+    achieved = goal + rng.uniform(-0.03, 0.03, (500, 6))
+    goals = np.repeat(goal[None], 500, axis=0)
+    distance = np.maximum(
+        np.linalg.norm(achieved[:, :3], axis=1), np.linalg.norm(achieved[:, 3:] - goal[3:], axis=1)
+    )
+    np.testing.assert_array_equal(env.goal.reward(achieved, goals), distance < 0.01)
+    np.testing.assert_array_equal(env.goal.task_reward(achieved, goals), distance < 0.02)
+    assert (
+        0 < (distance < 0.01).sum() < (distance < 0.02).sum() < 500
+    )  # all three kinds drawn: the test can fail
+    plain = TaskEnv(_two_box_task(tmp_path))
+    np.testing.assert_array_equal(plain.goal.reward(achieved, goals), plain.goal.task_reward(achieved, goals))
+    env.close()
+    plain.close()
+
+
+@pytest.mark.parametrize("scale", [0, -0.5, 1.5, float("nan"), True])
+def test_a_reward_scale_outside_0_1_is_refused_in_one_line(tmp_path, scale):
+    with pytest.raises(InvalidConfig, match=r"reward_scale") as err:
+        TaskEnv(_two_box_task(tmp_path), reward_scale=scale)
+    assert "\n" not in str(err.value)
+
+
+def test_the_reward_scale_applies_to_a_pose_goals_orientation_tolerance_too():
+    env = TaskEnv("UR5ePoseReach-v0", reward_scale=0.5)
+    tolerance = env.task.success.orientation  # deg
+    goal = np.array([0.3, 0.2, 0.4, 1.0, 0.0, 0.0, 0.0])
+    for angle, (success, rewarded) in {0.4: (True, True), 0.6: (True, False), 1.1: (False, False)}.items():
+        half = np.radians(angle * tolerance) / 2
+        achieved = goal.copy()
+        achieved[3:] = [np.cos(half), 0.0, 0.0, np.sin(half)]  # turned about z by angle x tolerance
+        reward, info = env.goal.outcome(achieved, goal)
+        assert info["is_success"] is success and reward == float(rewarded), angle
+        assert info["angle"] == pytest.approx(angle * tolerance)
+    env.close()

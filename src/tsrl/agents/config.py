@@ -22,6 +22,7 @@ from tyro.conf import OmitArgPrefixes, arg
 from ..envs.actions import ACTION_MODES
 from ..envs.keys import OBS_KEYS
 from ..envs.observations import OBS_PRESETS
+from ..envs.tasks import check_reward_scale
 from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_number
 
 Algo = Literal["ddpg", "td3", "sac", "tqc", "bc"]
@@ -43,18 +44,22 @@ LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: 0.98, no random steps, TD3+BC's anchored actor loss after a warm-up in which it only clones, the
 #: clone kept frozen beside the actor with the critic choosing between them in acting and in the TD
 #: target (IBRL; tsrl.agents.reference), and the observation normaliser fixed at the demonstrations'
-#: statistics (as the clone was fitted). demos_reset_prob applies only where demonstrations are on;
+#: statistics (as the clone was fitted), and a reward that counts success only within half the
+#: task's tolerances (a margin; success is judged at the tolerances). demos_reset_prob applies only
+#: where demonstrations are on;
 #: bc_pretrain, reference and fixed_normalizer are not options.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
         "algo": "ddpg", "layer_norm": "none", "utd": None, "learning_starts": 500, "gamma": 0.95,
         "action_noise": 0.2, "demos_batch_share": 0.125, "demos_reset_prob": 0.0, "demos_bc_anchor": None,
         "demos_bc_anchor_warmup": 0, "bc_pretrain": False, "reference": False, "fixed_normalizer": False,
+        "reward_scale": 1.0,
     },
     "fast": {
         "algo": "td3", "layer_norm": "critic", "utd": 2.0, "learning_starts": 0, "gamma": 0.98,
         "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 0.25,
         "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True, "reference": True, "fixed_normalizer": True,
+        "reward_scale": 0.5,
     },
 }  # fmt: skip
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
@@ -293,6 +298,12 @@ class AgentConfig:
     """Standard deviation of the Gaussian exploration noise on the [-1, 1] action, DDPG and TD3 only.
     Default: the learner's (paper: 0.2, HER paper and rl-baselines3-zoo; fast: 0.1, TD3's, around a
     cloned actor). SAC explores through its entropy term instead."""
+    reward_scale: float = None  # type: ignore[assignment]
+    """tsrl environments: the reward counts a step as a success only with every goal part within this
+    fraction of the task's tolerances, in (0, 1] (SuccessSpec.reward_scale); success, and so evaluation,
+    stays at the tolerances. With a sparse reward at the tolerance itself nothing teaches a margin:
+    the push's misses end just outside it (studies/learner-from-demos). Default: the learner's (paper:
+    1, the task's reward; fast: 0.5)."""
     action_l2: float = 0.0
     """Weight of a penalty on the actor's squared actions (mean over the batch and the [-1, 1] action's
     dimensions) added to the actor loss: OpenAI baselines' HER `action_l2` (1.0 on Fetch;
@@ -319,6 +330,7 @@ class AgentConfig:
         self._resolve_learner()
         _choice("algo", self.algo, ALGOS)
         _choice("layer_norm", self.layer_norm, LAYER_NORMS)
+        check_reward_scale("reward_scale", self.reward_scale)
         if self.utd is not None and (not is_number(self.utd) or not self.utd > 0):
             raise InvalidConfig(
                 f"utd {self.utd!r}: the update-to-data ratio is gradient steps per env step, > 0 "
@@ -411,7 +423,7 @@ class AgentConfig:
         """Options left at None get the learner preset's value (LEARNER_PRESETS); resets to
         demonstration states without demonstrations are refused here, before the reset probability is."""
         preset = LEARNER_PRESETS[self.learner]
-        for name in ("algo", "layer_norm", "utd", "learning_starts", "gamma", "action_noise"):
+        for name in ("algo", "layer_norm", "utd", "learning_starts", "gamma", "action_noise", "reward_scale"):
             if getattr(self, name) is None:
                 object.__setattr__(self, name, preset[name])
         demos = self.demos
@@ -538,14 +550,16 @@ class TrainConfig:
 
     @property
     def env_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of gym.make: obs and action (unless the task's own) for tsrl environments,
-        and for a task file the file (a run's copy: its Task, tsrl.agents.task_record) and its episode
+        """Keyword arguments of gym.make: obs and action (unless the task's own) and the reward scale
+        (unless 1) for tsrl environments, and for a task file the file (a run's copy: its Task, tsrl.agents.task_record) and its episode
         length; none for other environments."""
         if not self.is_tsrl_env:
             return {}
         kwargs: dict[str, Any] = {"obs": self.obs}
         if self.action != TASK_ACTION:
             kwargs["action"] = self.action
+        if self.agent.reward_scale != 1.0:
+            kwargs["reward_scale"] = self.agent.reward_scale
         if self.is_task_file:
             from ..envs import load_task
             from .task_record import recorded_task

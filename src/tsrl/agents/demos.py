@@ -19,6 +19,7 @@ critic's quantiles). Without `q_filter` every demonstration row counts.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
@@ -172,10 +173,18 @@ def attach_demos(
 
 
 def load_run_demos(cfg: DemoConfig, venv: VecEnv, normalizer: VecNormalize | None) -> Demonstrations:
-    """The run's demonstration file, checked against its env (DemoSpec), with the normaliser's
-    statistics updated by the demonstration states (as OpenAI baselines' DDPG + demonstrations does)."""
+    """The run's demonstration file, checked against its env (DemoSpec), its rewards recomputed under
+    the env's reward scale where that is not 1, with the normaliser's statistics updated by the
+    demonstration states (as OpenAI baselines' DDPG + demonstrations does)."""
     assert cfg.path is not None
-    demos = load_demos(cfg.path, DemoSpec.of(_first_env(venv)))
+    env = _first_env(venv)
+    demos = load_demos(cfg.path, DemoSpec.of(env))
+    base: Any = env.unwrapped  # a tsrl TaskEnv (DemoSpec.of checked it)
+    if base.task.success.reward_scale != 1.0 and demos.n_episodes:  # the file stores the task's reward
+        g = demos.achieved_goal.shape[2]
+        after = (demos.achieved_goal[:, 1:].reshape(-1, g), demos.desired_goal[:, 1:].reshape(-1, g))
+        rewards = base.compute_reward(*after, None).reshape(demos.rewards.shape)
+        demos = dataclasses.replace(demos, rewards=rewards.astype(demos.rewards.dtype))
     if normalizer is not None and demos.n_episodes:
         for key in OBS_KEYS:
             if key in normalizer.obs_rms:

@@ -74,6 +74,8 @@ class TaskEnv(gym.Env, EzPickle):
         action: overrides the task's action with a built-in mode (ACTION_PRESETS); the task's
             suction dimension is kept.
         success_radius: overrides the task's position tolerance [m].
+        reward_scale: overrides the task's reward scale (SuccessSpec.reward_scale: the reward counts
+            success within this fraction of the tolerances; is_success stays at the tolerances).
         ik_iterations: 1 = the paper's single linearised IK step per control step; more = a local
             iterative solve.
         render_mode: None, "rgb_array" or "human"; width, height: rgb_array image size.
@@ -94,17 +96,19 @@ class TaskEnv(gym.Env, EzPickle):
         width: int = 480,
         height: int = 480,
         camera: str | None = None,
+        reward_scale: float | None = None,
     ):
         EzPickle.__init__(
-            self, task, obs, action, render_mode, success_radius, ik_iterations, width, height, camera
-        )
+            self, task, obs, action, render_mode, success_radius, ik_iterations, width, height, camera,
+            reward_scale,
+        )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InvalidConfig(
                 f"unknown render_mode {render_mode!r}; accepted: None, {', '.join(self.metadata['render_modes'])}"
             )
         if isinstance(ik_iterations, bool) or not isinstance(ik_iterations, int) or ik_iterations < 1:
             raise InvalidConfig(f"ik_iterations must be an integer >= 1; got {ik_iterations!r}")
-        self.task: Task = load_task(task).with_overrides(obs, action, success_radius)
+        self.task: Task = load_task(task).with_overrides(obs, action, success_radius, reward_scale)
         #: The action's name: the built-in mode it is (with or without suction), else "task".
         self.action_mode: str = action_mode(self.task.action_spec)
         self.obs_spec: str = OBS_PRESETS.get(self.task.observation, self.task.observation)

@@ -99,6 +99,10 @@ class Goal:
         )
         self._tolerance_squared = task.success.position**2
         self._cos_half_tolerance = math.cos(math.radians(task.success.orientation) / 2)
+        self._reward_scale = task.success.reward_scale
+        scale = self._reward_scale
+        self._reward_tolerance_squared = (task.success.position * scale) ** 2
+        self._cos_half_reward_tolerance = math.cos(math.radians(task.success.orientation * scale) / 2)
         self._success_value, self._failure_value = (1.0, 0.0) if task.success.reward == "0/1" else (0.0, -1.0)
         # One goal part read whole (the reach tasks): success compares the whole vectors.
         self._one_position = len(self.parts) == 1 and not self.pose and not self.penalties
@@ -118,24 +122,40 @@ class Goal:
         return self._evaluate(achieved, desired)[0]
 
     def reward(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
-        """The reward: the success value where `success`, else the failure value (0/1, or -1/0 with
-        reward = "-1/0"), plus each penalty that applies to the achieved goal.
+        """The reward: the success value where every part is within `reward_scale` of its tolerances
+        (SuccessSpec; at 1, where `success`), else the failure value (0/1, or -1/0 with reward =
+        "-1/0"), plus each penalty that applies to the achieved goal.
 
         Goals (g,) -> (), (B, g) -> (B,); float64.
         """
+        success, squared, dot, penalty, _ = self._evaluate(achieved, desired)
+        return self._reward(self._rewarded(success, squared, dot), penalty)
+
+    def task_reward(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
+        """`reward` with the reward's success at the tolerances themselves (reward_scale 1): the
+        reward a demonstration file stores, whatever the run's scale. Shapes as `reward`."""
         success, _, _, penalty, _ = self._evaluate(achieved, desired)
         return self._reward(success, penalty)
 
     def outcome(self, achieved: np.ndarray, desired: np.ndarray) -> tuple[float, dict[str, Any]]:
-        """One step's reward (as `reward`) and goal info of goals (g,): is_success, distance [m] (the
-        largest part's), angle [deg] (pose goals), penalty and penalty_terminates (with penalties)."""
+        """One step's reward (as `reward`) and goal info of goals (g,): is_success (at the
+        tolerances), distance [m] (the largest part's), angle [deg] (pose goals), penalty and
+        penalty_terminates (with penalties)."""
         success, squared, dot, penalty, terminates = self._evaluate(achieved, desired)
         info: dict[str, Any] = {"is_success": bool(success), "distance": math.sqrt(squared)}
         if dot is not None:
             info["angle"] = math.degrees(2 * math.acos(min(float(dot), 1.0)))
         if self.penalties:
             info["penalty"], info["penalty_terminates"] = float(penalty), bool(terminates)
-        return float(self._reward(success, penalty)), info
+        return float(self._reward(self._rewarded(success, squared, dot), penalty)), info
+
+    def _rewarded(self, success: Any, squared: Any, dot: Any) -> Any:
+        """Where the reward counts success: `success` itself at reward_scale 1, else every part within
+        reward_scale of its tolerances."""
+        if self._reward_scale == 1.0:
+            return success
+        within = squared < self._reward_tolerance_squared
+        return within if dot is None else within & (dot > self._cos_half_reward_tolerance)
 
     def _reward(self, success: np.ndarray, penalty: np.ndarray | float) -> np.ndarray:
         # failure + success * (success - failure value): exact for both conventions (gap 1).

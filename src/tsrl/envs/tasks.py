@@ -113,12 +113,17 @@ class SuccessSpec:
         orientation: tolerance [deg] on the angle between achieved and desired orientations.
         reward: "0/1" (success 1, else 0; the paper) or "-1/0" (Gymnasium-Robotics' convention).
         penalties: reward terms on goal-independent task maps.
+        reward_scale: the reward's success value needs every part within this fraction of its
+            tolerances, in (0, 1] (a learner's margin: with a sparse reward at the tolerance itself, a
+            goal at 0.99 of it is worth as much as one reached exactly); success itself, and so
+            evaluation, is judged at the tolerances. 1: the reward's success is success.
     """
 
     position: float = 0.05
     orientation: float = 15.0
     reward: Literal["0/1", "-1/0"] = "0/1"
     penalties: tuple[Penalty, ...] = ()
+    reward_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -320,10 +325,15 @@ class Task:
         return preset(name, *taskspace_box(load_robot(self.robot_path)))
 
     def with_overrides(
-        self, obs: str | None = None, action: str | None = None, success_radius: float | None = None
+        self,
+        obs: str | None = None,
+        action: str | None = None,
+        success_radius: float | None = None,
+        reward_scale: float | None = None,
     ) -> Task:
         """This task with another observation (a preset or spec), a built-in action mode (the task's
-        suction or gripper dimension kept) or position tolerance [m]; itself when nothing is given."""
+        suction or gripper dimension kept), position tolerance [m] or reward scale
+        (SuccessSpec.reward_scale); itself when nothing is given."""
         overrides: dict[str, Any] = {}
         if obs is not None:
             overrides["observation"] = obs
@@ -335,6 +345,10 @@ class Task:
             if isinstance(success_radius, bool) or not success_radius > 0:
                 raise InvalidConfig(f"success_radius must be > 0 m; got {success_radius}")
             overrides["success"] = dataclasses.replace(self.success, position=success_radius)
+        if reward_scale is not None:
+            check_reward_scale("reward_scale", reward_scale)
+            success = overrides.get("success", self.success)
+            overrides["success"] = dataclasses.replace(success, reward_scale=reward_scale)
         return dataclasses.replace(self, **overrides) if overrides else self
 
 
@@ -393,6 +407,7 @@ def _validate(task: Task) -> None:
     _at_most("control_dt", task.control_dt, MAX_CONTROL_DT, "s")
     _at_most("success.position", task.success.position, MAX_POSITION_TOLERANCE, "m")
     _at_most("success.orientation", task.success.orientation, MAX_ORIENTATION_TOLERANCE, "deg")
+    check_reward_scale("success.reward_scale", task.success.reward_scale)
     for key, tables in (("objects", task.objects), ("fixtures", task.fixtures)):
         if len(tables) > MAX_OBJECTS:
             raise InvalidConfig(f"{len(tables)} [[{key}]] tables; accepted: at most {MAX_OBJECTS}")
@@ -453,6 +468,11 @@ def _validate(task: Task) -> None:
         raise InvalidConfig(
             f"obstacle: need 0 < fraction_low <= fraction_high < 1 and 0 < radius[0] <= radius[1]; got {s}"
         )
+
+
+def check_reward_scale(key: str, value: float) -> None:
+    """Refuses a reward scale (SuccessSpec.reward_scale) outside (0, 1]."""
+    _at_most(key, value, 1.0, "(a fraction of the success tolerances)")
 
 
 def _at_most(key: str, value: float, most: float, unit: str) -> None:
