@@ -23,36 +23,23 @@ import numpy as np
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents.checkpoint import load_policy, verify_checkpoint
-from tsrl.agents.evaluation import eval_seeds
-from tsrl.agents.factory import ALGO_CLASSES, make_env
+from tsrl.agents.evaluation import Evaluator, eval_seeds
+from tsrl.agents.factory import ALGO_CLASSES
 from tsrl.agents.run_folder import checkpoint_dirs, load_config
 
 CLASSES = ("left", "near", "late", "stuck")
 
 
-def episodes(model: Any, normalizer: Any, cfg: Any, seeds: list[int]) -> list[tuple[bool, list[float]]]:
-    """(success at the last step, goal distance per step) per seed, deterministically, side by side."""
-    envs = [make_env(cfg) for _ in seeds]
-    obs = [env.reset(seed=s)[0] for env, s in zip(envs, seeds, strict=True)]
-    distances: list[list[float]] = [[] for _ in seeds]
-    success = [False] * len(seeds)
-    active = list(range(len(seeds)))
-    while active:
-        batch: Any = {k: np.stack([obs[i][k] for i in active]) for k in obs[0]}
-        if normalizer is not None:
-            batch = normalizer.normalize_obs(batch)
-        actions, _ = model.predict(batch, deterministic=True)
-        still = []
-        for i, action in zip(active, actions, strict=True):
-            obs[i], _, terminated, truncated, info = envs[i].step(action)
-            distances[i].append(float(info["distance"]))
-            if terminated or truncated:
-                success[i] = bool(info["is_success"])
-            else:
-                still.append(i)
-        active = still
-    for env in envs:
-        env.close()
+def episodes(evaluator: Evaluator, model: Any, normalizer: Any) -> list[tuple[bool, list[float]]]:
+    """(success at the last step, goal distance per step) per evaluation seed."""
+    distances: list[list[float]] = [[] for _ in evaluator.seeds]
+    success = [False] * len(evaluator.seeds)
+
+    def record(i: int, info: dict[str, Any]) -> None:
+        distances[i].append(float(info["distance"]))
+        success[i] = bool(info["is_success"])  # the last step's stays
+
+    evaluator.evaluate(model, normalizer, on_step=record)
     return list(zip(success, distances, strict=True))
 
 
@@ -81,7 +68,7 @@ def main() -> None:
     print("| --- | ---: | --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |")
     for run_dir in args.run_dirs:
         cfg = load_config(run_dir)
-        seeds = eval_seeds(cfg.seed, args.episodes)
+        evaluator = Evaluator(cfg, eval_seeds(cfg.seed, args.episodes))
         checkpoint = verify_checkpoint(checkpoint_dirs(run_dir)[-1], cfg.agent.normalize, for_training=False)
         model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
         policy = model.policy
@@ -92,7 +79,7 @@ def main() -> None:
             else:
                 net = getattr(policy, name)
                 policy._predict = lambda obs, deterministic=False, net=net: net(obs)  # type: ignore[method-assign]
-            results = episodes(model, normalizer, cfg, seeds)
+            results = episodes(evaluator, model, normalizer)
             failed = [d for ok, d in results if not ok]
             classes = Counter(failure_class(d, args.radius) for d in failed)
             last = float(np.median([d[-1] for d in failed])) if failed else float("nan")
@@ -103,6 +90,7 @@ def main() -> None:
                 + f" | {last:.3f} |",
                 flush=True,
             )
+        evaluator.close()
 
 
 if __name__ == "__main__":

@@ -117,3 +117,18 @@ def test_the_anchored_bc_term_is_unfiltered(reach_demos):
     loss = BCLoss(object(), weight=1.0, q_filter=True, anchor=2.5)  # type: ignore[arg-type]
     assert not loss.q_filter
     assert BCLoss(object(), weight=1.0, q_filter=True).q_filter  # type: ignore[arg-type]
+
+
+def test_a_run_folder_from_before_the_reward_scale_loads_with_the_tasks_reward(reach_demos, tmp_path):
+    import json
+
+    from tsrl.agents.run_folder import CONFIG_FILE, load_config, write_json_atomic
+
+    data = fast(reach_demos).to_dict()
+    assert data["agent"]["reward_scale"] == 0.5  # a new run names what it uses
+    write_json_atomic(tmp_path / CONFIG_FILE, data)
+    assert load_config(tmp_path).agent.reward_scale == 0.5
+    del data["agent"]["reward_scale"]  # a fast run's folder written before the field: the task's reward
+    (tmp_path / CONFIG_FILE).write_text(json.dumps(data))
+    old = load_config(tmp_path)
+    assert old.agent.reward_scale == 1.0 and "reward_scale" not in old.env_kwargs

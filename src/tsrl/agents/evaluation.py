@@ -80,10 +80,15 @@ class Evaluator:
         ]
 
     def evaluate(
-        self, model: BaseAlgorithm, normalizer: VecNormalize | None, stop: Callable[[], bool] | None = None
+        self,
+        model: BaseAlgorithm,
+        normalizer: VecNormalize | None,
+        stop: Callable[[], bool] | None = None,
+        on_step: Callable[[int, dict[str, Any]], None] | None = None,
     ) -> EvalResult:
         """The result over every episode; raises EvaluationStopped where `stop()` is True before a step
-        (training asks it between steps, so SIGTERM never waits for thousands of episodes to end)."""
+        (training asks it between steps, so SIGTERM never waits for thousands of episodes to end).
+        `on_step(i, info)`, where given, sees each step's info of episode i (seeds[i]), in step order."""
         observations = [env.reset(seed=s)[0] for env, s in zip(self.envs, self.seeds, strict=True)]
         active = list(range(len(self.envs)))
         success = np.zeros(len(self.envs), dtype=bool)
@@ -100,6 +105,8 @@ class Evaluator:
             still = []
             for i, action in zip(active, actions, strict=True):
                 observations[i], _, terminated, truncated, info = self.envs[i].step(action)
+                if on_step is not None:
+                    on_step(i, info)
                 if "penalty" in info:
                     reports_penalty = True
                     penalised[i] |= info["penalty"] != 0
