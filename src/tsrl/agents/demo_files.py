@@ -297,6 +297,12 @@ def _task_file_digests(source: Path | None) -> tuple[tuple[str, str], ...] | Non
     return tuple(("+".join(f.roles), sha256(f.path)) for f in task_files(source) if "task" not in f.roles)
 
 
+def step_goals(demos: Demonstrations) -> tuple[np.ndarray, np.ndarray]:
+    """(achieved, desired) goals after each step, (N * T, g) each: what each stored reward reads."""
+    g = demos.achieved_goal.shape[2]
+    return demos.achieved_goal[:, 1:].reshape(-1, g), demos.desired_goal[:, 1:].reshape(-1, g)
+
+
 def check_rewards(path: Path | str, demos: Demonstrations, env: gym.Env) -> None:
     """Raises DemoFileError unless the stored rewards are the task's: `env`'s goal's task_reward of each
     step's achieved and desired goals (after the step; the reward at the tolerances, whatever the
@@ -304,10 +310,7 @@ def check_rewards(path: Path | str, demos: Demonstrations, env: gym.Env) -> None
     if not demos.n_transitions:
         return
     base: Any = env.unwrapped  # a tsrl TaskEnv (DemoSpec.of checked it)
-    g = demos.achieved_goal.shape[2]
-    achieved = demos.achieved_goal[:, 1:].reshape(-1, g)
-    desired = demos.desired_goal[:, 1:].reshape(-1, g)
-    expected = np.asarray(base.goal.task_reward(achieved, desired), dtype=np.float32)
+    expected = np.asarray(base.goal.task_reward(*step_goals(demos)), dtype=np.float32)
     stored = demos.rewards.reshape(-1).astype(np.float32)
     wrong = ~np.isclose(stored, expected, rtol=1e-5, atol=1e-5)
     if wrong.any():

@@ -33,7 +33,7 @@ from torch.utils.hooks import RemovableHandle
 from ..envs.keys import OBS_KEYS
 from .action_penalty import actor_action, actor_optimizer
 from .config import DemoConfig
-from .demo_files import Demonstrations, DemoSpec, load_demos
+from .demo_files import Demonstrations, DemoSpec, load_demos, step_goals
 from .her import FeatureHerReplayBuffer
 
 
@@ -181,9 +181,7 @@ def load_run_demos(cfg: DemoConfig, venv: VecEnv, normalizer: VecNormalize | Non
     demos = load_demos(cfg.path, DemoSpec.of(env))
     base: Any = env.unwrapped  # a tsrl TaskEnv (DemoSpec.of checked it)
     if base.task.success.reward_scale != 1.0 and demos.n_episodes:  # the file stores the task's reward
-        g = demos.achieved_goal.shape[2]
-        after = (demos.achieved_goal[:, 1:].reshape(-1, g), demos.desired_goal[:, 1:].reshape(-1, g))
-        rewards = base.compute_reward(*after, None).reshape(demos.rewards.shape)
+        rewards = base.compute_reward(*step_goals(demos), None).reshape(demos.rewards.shape)
         demos = dataclasses.replace(demos, rewards=rewards.astype(demos.rewards.dtype))
     if normalizer is not None and demos.n_episodes:
         for key in OBS_KEYS:

@@ -29,6 +29,13 @@ from .scenes import TARGET_BODY, TARGET_SITE
 from .tasks import Penalty, Task
 
 
+def _within(squared: Any, dot: Any, tolerance_squared: float, cos_half_tolerance: float) -> Any:
+    """Every part within tolerance: the largest squared distance below `tolerance_squared` and, for a
+    pose part (dot = |q . q_goal|, else None), the angle within its tolerance."""
+    within = squared < tolerance_squared
+    return within if dot is None else within & (dot > cos_half_tolerance)
+
+
 def marker_name(part: int) -> str:
     """The goal marker (mocap body and site) of goal part `part`: target, target_b, target_c, ..."""
     return TARGET_SITE if part == 0 else f"{TARGET_SITE}_{chr(ord('a') + part)}"
@@ -154,8 +161,7 @@ class Goal:
         reward_scale of its tolerances."""
         if self._reward_scale == 1.0:
             return success
-        within = squared < self._reward_tolerance_squared
-        return within if dot is None else within & (dot > self._cos_half_reward_tolerance)
+        return _within(squared, dot, self._reward_tolerance_squared, self._cos_half_reward_tolerance)
 
     def _reward(self, success: np.ndarray, penalty: np.ndarray | float) -> np.ndarray:
         # failure + success * (success - failure value): exact for both conventions (gap 1).
@@ -176,9 +182,7 @@ class Goal:
             squared = d2 if squared is None else np.maximum(squared, d2)
             if part.quaternion is not None:
                 dot = np.abs(np.vecdot(achieved[..., part.quaternion], desired[..., part.quaternion]))
-        success = squared < self._tolerance_squared
-        if dot is not None:
-            success = success & (dot > self._cos_half_tolerance)
+        success = _within(squared, dot, self._tolerance_squared, self._cos_half_tolerance)
         penalty: Any = 0.0
         terminates: Any = False
         for col, p in self.penalties:
