@@ -58,48 +58,53 @@ def main() -> None:
     )
     print("| --- | ---: | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: | ---: | ---: |")
     for run_dir in args.run_dirs:
-        cfg = load_config(run_dir)
-        evaluator = Evaluator(cfg, eval_seeds(cfg.seed, args.episodes))
-        dirs = checkpoint_dirs(run_dir)
-        chosen = dirs[-1] if args.at is None else next(d for d in dirs if d.name.endswith(f"{args.at:010d}"))
-        checkpoint = verify_checkpoint(chosen, cfg.agent.normalize, for_training=False)
-        model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
-        envs = [env.unwrapped for env in evaluator.envs]
-        boxes: list[list[np.ndarray]] = [[] for _ in envs]
-        cup: list[list[bool]] = [[] for _ in envs]
-        success = [False] * len(envs)
-        goal_z = np.zeros(len(envs))
+        print(probe(run_dir, args.episodes, args.at), flush=True)
 
-        def record(i: int, info: dict[str, Any]) -> None:
-            env: Any = envs[i]
-            if not boxes[i]:  # the reset's position: the box has not moved in the first step's physics
-                boxes[i].append(env.data.body("box").xpos.copy())
-            boxes[i].append(env.data.body("box").xpos.copy())
-            cup[i].append(bool(env.data.ctrl[env.interface.tool_ctrl] > 0.5))
-            success[i] = bool(info["is_success"])
-            goal_z[i] = float(env.data.mocap_pos[env.goal.marker_mocap(0), 2])  # the goal's marker
 
-        evaluator.evaluate(model, normalizer, on_step=record)
-        classes: Counter[str] = Counter()
-        lifts: dict[bool, list[int]] = {True: [], False: []}
-        for i in range(len(envs)):
-            box = np.asarray(boxes[i])
-            lifted = np.flatnonzero(box[1:, 2] > box[0, 2] + LIFT)
-            if lifted.size:
-                lifts[success[i]].append(int(lifted[0]) + 1)
-            if not success[i]:
-                classes[box_class(box, np.asarray(cup[i]))] += 1
-        failed = [i for i in range(len(envs)) if not success[i]]
-        lifted_goal = [float(goal_z[i] > boxes[i][0][2] + LIFT) for i in failed]
-        print(
-            f"| {run_dir.name[-32:]} | {checkpoint.state.env_steps:,} | {np.mean(success):.2f} | "
-            + " | ".join(str(classes[c]) for c in CLASSES)
-            + f" | {np.median(lifts[True]) if lifts[True] else float('nan'):.0f}"
-            + f" | {np.median(lifts[False]) if lifts[False] else float('nan'):.0f}"
-            + f" | {np.mean(lifted_goal) if lifted_goal else float('nan'):.2f} |",
-            flush=True,
-        )
-        evaluator.close()
+def probe(run_dir: Path, episodes: int, at: int | None) -> str:
+    """One table row: the run's checkpoint at `at` env steps (the newest where None) on its own
+    `episodes` evaluation seeds."""
+    cfg = load_config(run_dir)
+    evaluator = Evaluator(cfg, eval_seeds(cfg.seed, episodes))
+    dirs = checkpoint_dirs(run_dir)
+    chosen = dirs[-1] if at is None else next(d for d in dirs if d.name.endswith(f"{at:010d}"))
+    checkpoint = verify_checkpoint(chosen, cfg.agent.normalize, for_training=False)
+    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    envs: list[Any] = [env.unwrapped for env in evaluator.envs]
+    boxes: list[list[np.ndarray]] = [[] for _ in envs]
+    cup: list[list[bool]] = [[] for _ in envs]
+    success = [False] * len(envs)
+    goal_z = np.zeros(len(envs))
+
+    def record(i: int, info: dict[str, Any]) -> None:
+        data = envs[i].data
+        if not boxes[i]:  # the reset's position: the box has not moved in the first step's physics
+            boxes[i].append(data.body("box").xpos.copy())
+        boxes[i].append(data.body("box").xpos.copy())
+        cup[i].append(bool(data.ctrl[envs[i].interface.tool_ctrl] > 0.5))
+        success[i] = bool(info["is_success"])
+        goal_z[i] = float(data.mocap_pos[envs[i].goal.marker_mocap(0), 2])  # the goal's marker
+
+    evaluator.evaluate(model, normalizer, on_step=record)
+    evaluator.close()
+    classes: Counter[str] = Counter()
+    lifts: dict[bool, list[int]] = {True: [], False: []}
+    for i in range(len(envs)):
+        box = np.asarray(boxes[i])
+        lifted = np.flatnonzero(box[1:, 2] > box[0, 2] + LIFT)
+        if lifted.size:
+            lifts[success[i]].append(int(lifted[0]) + 1)
+        if not success[i]:
+            classes[box_class(box, np.asarray(cup[i]))] += 1
+    failed = [i for i in range(len(envs)) if not success[i]]
+    lifted_goal = [float(goal_z[i] > boxes[i][0][2] + LIFT) for i in failed]
+    return (
+        f"| {run_dir.name[-32:]} | {checkpoint.state.env_steps:,} | {np.mean(success):.2f} | "
+        + " | ".join(str(classes[c]) for c in CLASSES)
+        + f" | {np.median(lifts[True]) if lifts[True] else float('nan'):.0f}"
+        + f" | {np.median(lifts[False]) if lifts[False] else float('nan'):.0f}"
+        + f" | {np.mean(lifted_goal) if lifted_goal else float('nan'):.2f} |"
+    )
 
 
 if __name__ == "__main__":

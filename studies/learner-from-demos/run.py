@@ -17,6 +17,8 @@ it is above its highest for the clone); ref100 / ref10: that of commits ab08374-
 (pre-registration 3), fast100 / fast10: that of commits
 a6205d2-6840ec2 (pre-registration 2), whose rows are kept; run them at one of those commits. `--probe` writes the row to data/probes.csv instead (a probe
 is not a screen: one seed, to find a bug or a cause before the pre-registered runs).
+On UR5ePickPlace-v0 the arms carry `-press` (bc100-press, margin100-press: the solver's
+demonstrations since pre-registration 9, NEW_DEMOS); its rows without it are of the old ones.
 Every evaluation has 100 episodes on the run's fixed unseen seeds. Per run: final = mean of the last
 three evaluations; fresh = success of the final policy on 100 fresh seeds; to95 = the env steps from
 which the mean of three consecutive evaluations stays at or above 0.95 (curves.sustained_crossing);
@@ -72,6 +74,10 @@ BUDGETS = {
     "UR5ePickPlace-v0": 12_500,
 }
 EVAL_FREQ = {"PandaPickPlaceGripper-v0": 1_250, "UR5ePickPlace-v0": 1_250}  # others: 2,500
+#: Tasks whose scripted demonstrations changed during the study, and the suffix their arms carry from
+#: then on (bc100-press): the suction's solver presses the cup 1.5 cm below the box top (was 4 mm;
+#: pre-registration 9). Their rows without it are of the old demonstrations.
+NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 
 
 def budget(task: str, n: int) -> int:
@@ -80,9 +86,20 @@ def budget(task: str, n: int) -> int:
     return 60_000 if (task, n) == ("PandaPickPlaceGripper-v0", 10) else BUDGETS[task]
 
 
+def base_arm(arm: str, task: str) -> str:
+    """The arm without its demonstrations' suffix (NEW_DEMOS), which a task with new demonstrations
+    requires and others refuse."""
+    suffix = NEW_DEMOS.get(task, "")
+    if suffix and not arm.endswith(suffix):
+        raise SystemExit(f"{task}'s demonstrations changed (pre-registration 9): its arms are {arm}{suffix}")
+    if not suffix and "-" in arm:
+        raise SystemExit(f"arm {arm!r} on {task}: only {sorted(NEW_DEMOS)} take a demonstrations' suffix")
+    return arm.removesuffix(suffix)
+
+
 def demo_count(arm: str) -> int:
     """The demonstrations an arm learns from: the number its name ends in (bc100 -> 100)."""
-    digits = arm.lstrip("abcdefghijklmnopqrstuvwxyz")
+    digits = arm.split("-")[0].lstrip("abcdefghijklmnopqrstuvwxyz")
     if not digits.isdigit():
         raise SystemExit(
             f"arm {arm!r} names no number of demonstrations; accepted: bc100, bc10, margin100, margin10"
@@ -91,6 +108,7 @@ def demo_count(arm: str) -> int:
 
 
 def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
+    arm = base_arm(arm, task)
     demo_cfg = DemoConfig(path=str(demos))
     if arm.startswith("bc"):
         agent = AgentConfig(algo="bc", bc_steps=8_000, demos=demo_cfg)
@@ -116,7 +134,7 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
-    path = out / "demos" / f"{task}-{n}.npz"
+    path = out / "demos" / f"{task}-{n}{NEW_DEMOS.get(task, '')}.npz"
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
         save_demos(record_demos(f"tsrl/{task}", n, seed=0), path)
@@ -228,10 +246,12 @@ TARGETS = {
 
 #: The learner arms and the pre-registration whose rules they are judged by (README).
 LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5", "igate": "6", "margin": "8"}
+#: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
+NEW_DEMO_ARMS = {"margin": "9"}
 
 
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registrations 2-8) for each task and learner arm."""
+    """The pre-registered rules (README, pre-registrations 2-9) for each task and learner arm."""
     rows = read_rows()
     print(
         "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "
@@ -241,10 +261,15 @@ def verdicts() -> None:
     for (task, n), target in TARGETS.items():
         for arm, pre in LEARNER_ARMS.items():
             _verdict(rows, task, n, target, f"{arm}{n}", pre)
+        if task in NEW_DEMOS:
+            for arm, pre in NEW_DEMO_ARMS.items():
+                _verdict(rows, task, n, target, f"{arm}{n}{NEW_DEMOS[task]}", pre, NEW_DEMOS[task])
 
 
-def _verdict(rows: list[dict[str, str]], task: str, n: int, target: int, arm: str, pre: str) -> None:
-    bc = [float(r["final"]) for r in rows if r["task"] == task and r["arm"] == f"bc{n}"]
+def _verdict(
+    rows: list[dict[str, str]], task: str, n: int, target: int, arm: str, pre: str, suffix: str = ""
+) -> None:
+    bc = [float(r["final"]) for r in rows if r["task"] == task and r["arm"] == f"bc{n}{suffix}"]
     fast = [r for r in rows if r["task"] == task and r["arm"] == arm]
     if bc and fast:
         floor = float(np.mean(bc))
