@@ -113,7 +113,7 @@ def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, 
     if reference is None:
         optimizer, act = clone.optimizer, partial(actor_action, model)
     else:
-        optimizer, act = th.optim.Adam(clone.parameters(), lr=model.lr_schedule(1)), clone
+        optimizer, act = th.optim.Adam(clone.parameters(), lr=model.lr_schedule(1), foreach=True), clone
     clone.requires_grad_(True)
     clone.set_training_mode(True)
     for _ in range(steps):

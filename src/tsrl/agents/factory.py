@@ -157,6 +157,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
             "net_arch": list(a.net_arch),
             "features_extractor_class": PolicyInputs,
             "features_extractor_kwargs": {"keys": a.policy_inputs},
+            "optimizer_kwargs": {"foreach": True},  # one kernel per update for all tensors; same numbers
         },
         "tensorboard_log": tensorboard_log,
         "seed": cfg.seed,
