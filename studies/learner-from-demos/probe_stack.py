@@ -1,0 +1,95 @@
+"""The stack's failures, split by what happened to each box: for the newest checkpoint of each run, the
+policy as it acts on the run's own evaluation seeds, each failed episode put in the first class that
+fits (box: the first, to its goal on the table; box_b: the second, onto it; placed: within the task's
+3 cm of its goal):
+
+- first not lifted: the first box never lifted (more than 1 cm above its start);
+- first not placed: lifted, not placed at the last step, never placed before;
+- first knocked: placed at some step, not at the last;
+- second not lifted: the first placed at the last step, the second never lifted;
+- second not placed: the second lifted, not placed at the last step.
+
+    python studies/learner-from-demos/probe_stack.py RUN_DIR [RUN_DIR ...] [--episodes 100]
+
+A probe, not a screen: it looks for the cause of a plateau.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import tsrl  # noqa: F401  (registers the environments)
+from tsrl.agents.checkpoint import load_policy, verify_checkpoint
+from tsrl.agents.evaluation import Evaluator, eval_seeds
+from tsrl.agents.factory import ALGO_CLASSES
+from tsrl.agents.run_folder import checkpoint_dirs, load_config
+
+CLASSES = ("first not lifted", "first not placed", "first knocked", "second not lifted", "second not placed")
+LIFT = 0.01  # [m] above the start height
+PLACED = 0.03  # [m] the task's success radius per box
+
+
+def stack_class(first: np.ndarray, second: np.ndarray, goals: np.ndarray) -> str:
+    """first, second: (steps + 1, 3) box positions [m, world], the first row at reset; goals: (2, 3)."""
+    placed = np.linalg.norm(first - goals[0], axis=1) < PLACED
+    if not (first[:, 2] > first[0, 2] + LIFT).any():
+        return "first not lifted"
+    if not placed[-1]:
+        return "first knocked" if placed.any() else "first not placed"
+    if not (second[:, 2] > second[0, 2] + LIFT).any():
+        return "second not lifted"
+    return "second not placed"
+
+
+def probe(run_dir: Path, episodes: int) -> str:
+    """One table row for the run's newest checkpoint on its own `episodes` evaluation seeds."""
+    cfg = load_config(run_dir)
+    evaluator = Evaluator(cfg, eval_seeds(cfg.seed, episodes))
+    checkpoint = verify_checkpoint(checkpoint_dirs(run_dir)[-1], cfg.agent.normalize, for_training=False)
+    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    envs: list[Any] = [env.unwrapped for env in evaluator.envs]
+    boxes: list[list[np.ndarray]] = [[] for _ in envs]
+    goals = np.zeros((len(envs), 2, 3))
+    success = [False] * len(envs)
+
+    def record(i: int, info: dict[str, Any]) -> None:
+        data = envs[i].data
+        both = np.stack([data.body("box").xpos, data.body("box_b").xpos])
+        if not boxes[i]:  # the reset's positions: the boxes have not moved in the first step's physics
+            boxes[i].append(both)
+        boxes[i].append(both)
+        goals[i] = [data.mocap_pos[envs[i].goal.marker_mocap(p)] for p in range(2)]
+        success[i] = bool(info["is_success"])
+
+    evaluator.evaluate(model, normalizer, on_step=record)
+    evaluator.close()
+    classes = Counter(
+        stack_class(np.asarray(boxes[i])[:, 0], np.asarray(boxes[i])[:, 1], goals[i])
+        for i in range(len(envs))
+        if not success[i]
+    )
+    return (
+        f"| {run_dir.name[-32:]} | {checkpoint.state.env_steps:,} | {np.mean(success):.2f} | "
+        + " | ".join(str(classes[c]) for c in CLASSES)
+        + " |"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dirs", type=Path, nargs="+")
+    parser.add_argument("--episodes", type=int, default=100)
+    args = parser.parse_args()
+    print("| run | env steps | success | " + " | ".join(CLASSES) + " |")
+    print("| --- | ---: | ---: | " + " | ".join("---:" for _ in CLASSES) + " |")
+    for run_dir in args.run_dirs:
+        print(probe(run_dir, args.episodes), flush=True)
+
+
+if __name__ == "__main__":
+    main()
