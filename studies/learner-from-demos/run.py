@@ -8,7 +8,8 @@ data/runs.csv; `table` prints the study's table from that file.
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
 seed 0), 8,000 gradient steps; margin100 / margin10: `--learner fast` with the same demonstrations
 as it is now (pre-registration 8: pre-registration 6's learner with a reward at half the task's
-success radius); igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
+success radius); radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
+igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
 that of commit 35ff8dc (pre-registration 5: lcb's learner, and the clone acts until the choice is
 measured better on the task, tsrl.agents.acting_gate); lcb100 / lcb10: that of commit c09ac4e (pre-registration 4: the
@@ -102,7 +103,7 @@ def demo_count(arm: str) -> int:
     digits = arm.split("-")[0].lstrip("abcdefghijklmnopqrstuvwxyz")
     if not digits.isdigit():
         raise SystemExit(
-            f"arm {arm!r} names no number of demonstrations; accepted: bc100, bc10, margin100, margin10"
+            f"arm {arm!r} names no number of demonstrations; accepted: bc100, bc10, margin100, margin10, radius100, radius10"
         )
     return int(digits)
 
@@ -116,8 +117,9 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith("margin"):
-        agent = AgentConfig(learner="fast", demos=demo_cfg)
+    if arm.startswith(("margin", "radius")):  # radius: the reward at the task's own tolerances
+        scale = {"reward_scale": 1.0} if arm.startswith("radius") else {}
+        agent = AgentConfig(learner="fast", demos=demo_cfg, **scale)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=budget(task, demo_count(arm)),
             eval_freq=EVAL_FREQ.get(task, 2_500),
@@ -130,7 +132,7 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
     for old, commits in old_designs.items():
         if arm.startswith(old):
             raise SystemExit(f"arm {arm!r} is --learner fast of commits {commits}: run it at one of them")
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, margin100, margin10")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, margin100, margin10, radius100, radius10")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -247,11 +249,11 @@ TARGETS = {
 #: The learner arms and the pre-registration whose rules they are judged by (README).
 LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5", "igate": "6", "margin": "8"}
 #: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
-NEW_DEMO_ARMS = {"margin": "9"}
+NEW_DEMO_ARMS = {"margin": "9", "radius": "10"}
 
 
 def verdicts() -> None:
-    """The pre-registered rules (README, pre-registrations 2-9) for each task and learner arm."""
+    """The pre-registered rules (README, pre-registrations 2-10) for each task and learner arm."""
     rows = read_rows()
     print(
         "| task | demos | learner arm (pre-registration) | BC floor | learner seeds | lowest eval after 2,500 | "
