@@ -30,6 +30,17 @@ from tsrl.agents.run_folder import checkpoint_dirs, load_config
 CLASSES = ("left", "near", "late", "stuck")
 
 
+def load_run(run_dir: Path, episodes: int, at: int | None = None) -> tuple[Evaluator, Any, Any, Any]:
+    """(evaluator on the run's own `episodes` evaluation seeds, model, normaliser, checkpoint) of the
+    run's checkpoint at `at` env steps, the newest where None. The caller closes the evaluator."""
+    cfg = load_config(run_dir)
+    dirs = checkpoint_dirs(run_dir)
+    chosen = dirs[-1] if at is None else next(d for d in dirs if d.name.endswith(f"{at:010d}"))
+    checkpoint = verify_checkpoint(chosen, cfg.agent.normalize, for_training=False)
+    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    return Evaluator(cfg, eval_seeds(cfg.seed, episodes)), model, normalizer, checkpoint
+
+
 def episodes(evaluator: Evaluator, model: Any, normalizer: Any) -> list[tuple[bool, list[float]]]:
     """(success at the last step, goal distance per step) per evaluation seed."""
     distances: list[list[float]] = [[] for _ in evaluator.seeds]
@@ -67,10 +78,7 @@ def main() -> None:
     )
     print("| --- | ---: | --- | ---: | " + " | ".join("---:" for _ in CLASSES) + " | ---: |")
     for run_dir in args.run_dirs:
-        cfg = load_config(run_dir)
-        evaluator = Evaluator(cfg, eval_seeds(cfg.seed, args.episodes))
-        checkpoint = verify_checkpoint(checkpoint_dirs(run_dir)[-1], cfg.agent.normalize, for_training=False)
-        model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+        evaluator, model, normalizer, checkpoint = load_run(run_dir, args.episodes)
         policy = model.policy
         acting = policy._predict
         for name in ("acting", "actor", "reference"):

@@ -22,12 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents.checkpoint import load_policy, verify_checkpoint
-from tsrl.agents.evaluation import Evaluator, eval_seeds
-from tsrl.agents.factory import ALGO_CLASSES
-from tsrl.agents.run_folder import checkpoint_dirs, load_config
+from probe_failures import load_run  # type: ignore[import-not-found]
 
 CLASSES = ("first not lifted", "first not placed", "first knocked", "second not lifted", "second not placed")
 LIFT = 0.01  # [m] above the start height
@@ -48,10 +43,7 @@ def stack_class(first: np.ndarray, second: np.ndarray, goals: np.ndarray) -> str
 
 def probe(run_dir: Path, episodes: int) -> str:
     """One table row for the run's newest checkpoint on its own `episodes` evaluation seeds."""
-    cfg = load_config(run_dir)
-    evaluator = Evaluator(cfg, eval_seeds(cfg.seed, episodes))
-    checkpoint = verify_checkpoint(checkpoint_dirs(run_dir)[-1], cfg.agent.normalize, for_training=False)
-    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    evaluator, model, normalizer, checkpoint = load_run(run_dir, episodes)
     envs: list[Any] = [env.unwrapped for env in evaluator.envs]
     boxes: list[list[np.ndarray]] = [[] for _ in envs]
     goals = np.zeros((len(envs), 2, 3))

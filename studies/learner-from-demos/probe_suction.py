@@ -23,12 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents.checkpoint import load_policy, verify_checkpoint
-from tsrl.agents.evaluation import Evaluator, eval_seeds
-from tsrl.agents.factory import ALGO_CLASSES
-from tsrl.agents.run_folder import checkpoint_dirs, load_config
+from probe_failures import load_run  # type: ignore[import-not-found]
 
 CLASSES = ("untouched", "pushed", "dropped", "held", "other")
 LIFT = 0.01  # [m] above the box's start height
@@ -64,12 +59,7 @@ def main() -> None:
 def probe(run_dir: Path, episodes: int, at: int | None) -> str:
     """One table row: the run's checkpoint at `at` env steps (the newest where None) on its own
     `episodes` evaluation seeds."""
-    cfg = load_config(run_dir)
-    evaluator = Evaluator(cfg, eval_seeds(cfg.seed, episodes))
-    dirs = checkpoint_dirs(run_dir)
-    chosen = dirs[-1] if at is None else next(d for d in dirs if d.name.endswith(f"{at:010d}"))
-    checkpoint = verify_checkpoint(chosen, cfg.agent.normalize, for_training=False)
-    model, normalizer = load_policy(checkpoint, ALGO_CLASSES[cfg.agent.algo])
+    evaluator, model, normalizer, checkpoint = load_run(run_dir, episodes, at)
     envs: list[Any] = [env.unwrapped for env in evaluator.envs]
     boxes: list[list[np.ndarray]] = [[] for _ in envs]
     cup: list[list[bool]] = [[] for _ in envs]
