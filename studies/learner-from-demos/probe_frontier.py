@@ -13,9 +13,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import run  # type: ignore[import-not-found]
-
-from tsrl.agents import TrainConfig
+from run import train_arm  # type: ignore[import-not-found]
 
 
 def main() -> None:
@@ -25,15 +23,11 @@ def main() -> None:
     parser.add_argument("--k", type=int, default=3)
     parser.add_argument("--reset-prob", type=float, default=0.5)
     args = parser.parse_args()
-    arm_config = run.arm_config
-
-    def with_frontier(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
-        cfg = arm_config(arm, task, seed, demos)
-        curriculum = dataclasses.replace(cfg.agent.demos, reset_prob=args.reset_prob, reset_frontier_k=args.k)
-        return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, demos=curriculum))
-
-    run.arm_config = with_frontier
-    run.train_arm("margin100", "PandaStack-v0", [args.seed], args.out, probe=True)
+    curriculum = {"reset_prob": args.reset_prob, "reset_frontier_k": args.k}
+    train_arm(
+        "margin100", "PandaStack-v0", [args.seed], args.out, probe=True,
+        change=lambda agent: dataclasses.replace(agent, demos=dataclasses.replace(agent.demos, **curriculum)),
+    )  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """A probe of the suction's grasp (probe_suction.py): one run of ARM on demonstrations recorded by a
-scripted pick-and-place whose descent targets `--depth` below the box top (PickPlaceSolver.GRIP_DEPTH,
-0.004 m in the solver today) instead of the solver's own depth, in OUT's own demonstration cache.
+scripted pick-and-place whose descent targets `--depth` below the box top (PickPlaceSolver.GRIP_DEPTH:
+0.004 m when this probe ran at 4b7de07, 0.015 m since pre-registration 9), in OUT's own demonstration
+cache.
 
     python studies/learner-from-demos/probe_press.py ARM SEED --out DIR [--depth 0.015]
 

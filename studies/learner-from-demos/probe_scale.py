@@ -13,9 +13,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import run  # type: ignore[import-not-found]
-
-from tsrl.agents import TrainConfig
+from run import train_arm  # type: ignore[import-not-found]
 
 
 def main() -> None:
@@ -24,14 +22,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--reward-scale", type=float, default=1.0)
     args = parser.parse_args()
-    arm_config = run.arm_config
-
-    def with_scale(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
-        cfg = arm_config(arm, task, seed, demos)
-        return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, reward_scale=args.reward_scale))
-
-    run.arm_config = with_scale
-    run.train_arm("margin100-press", "UR5ePickPlace-v0", [args.seed], args.out, probe=True)
+    train_arm(
+        "margin100-press", "UR5ePickPlace-v0", [args.seed], args.out, probe=True,
+        change=lambda agent: dataclasses.replace(agent, reward_scale=args.reward_scale),
+    )  # fmt: skip
 
 
 if __name__ == "__main__":

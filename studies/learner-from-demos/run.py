@@ -30,9 +30,11 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +81,8 @@ EVAL_FREQ = {"PandaPickPlaceGripper-v0": 1_250, "UR5ePickPlace-v0": 1_250}  # ot
 #: then on (bc100-press): the suction's solver presses the cup 1.5 cm below the box top (was 4 mm;
 #: pre-registration 9). Their rows without it are of the old demonstrations.
 NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
+#: The arms this commit runs (the others name the commits that ran them).
+ACCEPTED_ARMS = "bc100, bc10, margin100, margin10, radius100, radius10"
 
 
 def budget(task: str, n: int) -> int:
@@ -102,9 +106,7 @@ def demo_count(arm: str) -> int:
     """The demonstrations an arm learns from: the number its name ends in (bc100 -> 100)."""
     digits = arm.split("-")[0].lstrip("abcdefghijklmnopqrstuvwxyz")
     if not digits.isdigit():
-        raise SystemExit(
-            f"arm {arm!r} names no number of demonstrations; accepted: bc100, bc10, margin100, margin10, radius100, radius10"
-        )
+        raise SystemExit(f"arm {arm!r} names no number of demonstrations; accepted: {ACCEPTED_ARMS}")
     return int(digits)
 
 
@@ -132,7 +134,7 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
     for old, commits in old_designs.items():
         if arm.startswith(old):
             raise SystemExit(f"arm {arm!r} is --learner fast of commits {commits}: run it at one of them")
-    raise SystemExit(f"unknown arm {arm!r}; accepted: bc100, bc10, margin100, margin10, radius100, radius10")
+    raise SystemExit(f"unknown arm {arm!r}; accepted: {ACCEPTED_ARMS}")
 
 
 def demo_file(out: Path, task: str, n: int) -> Path:
@@ -177,7 +179,16 @@ def commit() -> str:
     ).stdout.strip()
 
 
-def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = False) -> None:
+def train_arm(
+    arm: str,
+    task: str,
+    seeds: list[int],
+    out: Path,
+    probe: bool = False,
+    change: Callable[[AgentConfig], AgentConfig] | None = None,
+) -> None:
+    """Trains `arm` on `task` per seed and appends its row; `change`, where given, alters each run's
+    agent configuration (a probe's variant of the arm)."""
     arm_config(arm, task, seeds[0], Path())  # an unknown or old arm is refused before any recording
     demos = demo_file(out, task, demo_count(arm))
     done = set() if probe else {(r["task"], r["arm"], r["seed"]) for r in read_rows()}
@@ -185,6 +196,8 @@ def train_arm(arm: str, task: str, seeds: list[int], out: Path, probe: bool = Fa
         if (task, arm, str(seed)) in done:
             continue
         cfg = arm_config(arm, task, seed, demos)
+        if change is not None:
+            cfg = dataclasses.replace(cfg, agent=change(cfg.agent))
         parent = out / arm / task
         run_dir = parent / cfg.run_name
         if (run_dir / CONFIG_FILE).is_file():
