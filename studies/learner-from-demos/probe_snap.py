@@ -33,7 +33,13 @@ def main() -> None:
         for snap in (False, True):
             commands: list[float] = []
 
-            def act(obs: Any, deterministic: bool = False, snap: bool = snap) -> th.Tensor:
+            def act(
+                obs: Any,
+                deterministic: bool = False,
+                snap: bool = snap,
+                acting: Any = acting,
+                commands: list[float] = commands,
+            ) -> th.Tensor:
                 action = acting(obs, deterministic)
                 commands.extend(action[:, -1].tolist())
                 if snap:
