@@ -22,7 +22,8 @@ from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingG
 from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import save_demos
 from tsrl.agents.demonstrators import record_demos
-from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, choose
+from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, ResidualHead, choose
+from tsrl.exceptions import InvalidConfig
 
 REACH = "tsrl/UR5eReach-v0"
 
@@ -293,3 +294,55 @@ def test_training_episodes_cycle_through_the_kinds_and_the_decision_is_saved_wit
         custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
     )
     assert bool(loaded.policy.choice_acts) and loaded.gate.episodes == episodes
+
+
+def test_a_residual_actor_starts_as_the_clone_moves_at_most_alpha_from_it_and_trains_alone(
+    reach_demos, tmp_path
+):
+    base = fast(reach_demos, warmup=0)
+    cfg = dataclasses_replace(base, agent=dataclasses_replace(base.agent, residual=0.3))
+    model = make_agent(cfg, make_vec_env(cfg))
+    policy = model.policy
+    assert isinstance(policy, ReferenceTD3Policy) and isinstance(policy.actor.mu, ResidualHead)
+    obs = _obs_batch(model, 64, seed=3)
+    with th.no_grad():
+        clone = policy.reference(obs)
+        assert th.equal(policy.actor(obs), clone)  # the residual starts at zero
+        assert th.equal(policy.actor_target.actor(obs), clone)
+        assert not th.equal(clone, th.zeros_like(clone))  # the clone was fitted: the check can fail
+    reference_ids = {id(p) for p in policy.reference.parameters()}
+    assert not reference_ids & {id(p) for g in policy.actor.optimizer.param_groups for p in g["params"]}
+    _set_constant(policy.actor.mu.residual, 0.99)  # the largest correction: +0.99 * alpha everywhere
+    with th.no_grad():
+        moved = policy.actor(obs) - clone
+    free = clone < 1 - 0.3  # rows and components the clamp leaves alone
+    assert th.allclose(moved[free], th.full_like(moved[free], 0.3 * 0.99)) and free.any()
+    assert (moved.abs() <= 0.3 + 1e-6).all()
+    kept = [p.clone() for p in policy.reference.parameters()]
+    model.set_logger(configure(None, []))
+    model.learn(400)
+    assert all(th.equal(a, b) for a, b in zip(policy.reference.parameters(), kept, strict=True))
+    with th.no_grad():
+        assert (policy.actor(obs) - policy.reference(obs)).abs().max() <= 0.3 + 1e-6
+    model.save(tmp_path / "model.zip")
+    loaded = TD3.load(
+        tmp_path / "model.zip",
+        custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
+    )
+    assert isinstance(loaded.policy, ReferenceTD3Policy) and loaded.policy.residual == 0.3
+    with th.no_grad():
+        assert th.equal(loaded.policy.actor(obs), policy.actor(obs))
+
+
+@pytest.mark.parametrize("residual", [-0.1, 1.5, float("nan"), True])
+def test_a_residual_outside_0_1_is_refused_in_one_line(residual):
+    with pytest.raises(InvalidConfig, match=r"^residual .*accepted: a number in \[0, 1\]") as err:
+        AgentConfig(residual=residual)
+    assert "\n" not in str(err.value)
+
+
+def test_a_residual_without_the_fast_learners_clone_is_refused(reach_demos):
+    with pytest.raises(InvalidConfig, match="needs --learner fast.*got learner 'paper'"):
+        AgentConfig(learner="paper", residual=0.3, demos=DemoConfig(path=str(reach_demos)))
+    with pytest.raises(InvalidConfig, match="demos None"):
+        AgentConfig(learner="fast", residual=0.3)

@@ -105,7 +105,8 @@ def clone_step(
 def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
     """`steps` BC gradient steps before any env step. With a reference (tsrl.agents.reference) the
     clone is trained as a BC run trains its actor: the reference, with its dropout, and a fresh Adam at
-    the actor's learning rate; the actor and the target actor are then copied from it. Without one,
+    the actor's learning rate; the actor and the target actor are then copied from it (a residual actor
+    is not: it starts as the clone by construction). Without one,
     the actor (its deterministic action, its own optimizer), then copied into the target actor."""
     policy: Any = model.policy
     reference = getattr(policy, "reference", None)
@@ -120,7 +121,9 @@ def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, 
         clone_step(act, optimizer, *batches.sample(batch_size))
     clone.set_training_mode(False)
     clone.requires_grad_(reference is None)  # the reference stays frozen
-    for name in ("actor", "actor_target", "reference"):
+    # a residual actor (tsrl.agents.reference) starts at zero on the clone: only the reference is a copy
+    copies = ("reference",) if getattr(policy, "residual", 0) > 0 else ("actor", "actor_target", "reference")
+    for name in copies:
         copy = getattr(policy, name, None)
         if copy is not None and copy is not clone:  # parameter by parameter: layers differ by dropout
             with th.no_grad():

@@ -320,6 +320,11 @@ class AgentConfig:
     bc_dropout: float = 0.1
     """Dropout after each hidden layer of a behaviour-cloning actor (algo bc, and the fast learner's
     reference clone), off when it acts."""
+    residual: float = 0.0
+    """alpha in (0, 1]: the fast learner's actor is a bounded residual on its frozen clone, its action
+    clamp(clone(s) + alpha * r(s), -1, 1) with r its own network started at zero (residual policy
+    learning; tsrl.agents.reference), so it moves each action component at most alpha from the clone's;
+    0 (default): the actor is a policy of its own, started as a copy of the clone."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -362,6 +367,16 @@ class AgentConfig:
         check_int("bc_steps", self.bc_steps, 0)
         if not is_number(self.bc_dropout) or not 0 <= self.bc_dropout < 1:
             raise InvalidConfig(f"bc_dropout must be in [0, 1); got {self.bc_dropout!r}")
+        if not is_number(self.residual) or not 0 <= self.residual <= 1:
+            raise InvalidConfig(
+                f"residual {self.residual!r}: accepted: a number in [0, 1] (0: no residual actor)"
+            )
+        if self.residual > 0 and not self.has_reference:
+            raise InvalidConfig(
+                f"residual {self.residual!r} corrects the fast learner's clone: it needs --learner fast, algo "
+                f"td3 or ddpg and demonstrations (got learner {self.learner!r}, algo {self.algo!r}, demos "
+                f"{self.demos.path!r}); accepted without them: 0"
+            )
         if self.algo == BC:
             self._check_bc()
 

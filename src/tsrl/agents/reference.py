@@ -15,6 +15,12 @@ The critic can be sure and wrong about the actor's action on the steps that deci
 whether this choice or the clone alone is the policy's deterministic action is decided by measured
 episodes (tsrl.agents.acting_gate; the `choice_acts` buffer). The actor's own loss is TD3's (with the
 BC anchor of tsrl.agents.demos).
+
+With `residual` alpha > 0 the actor is a bounded correction of the clone instead of a second policy
+(residual policy learning, Silver et al. 2018; on imitation policies, Yuan et al. 2024's Policy
+Decorator): its action is clamp(reference(s) + alpha * r(s), -1, 1) with r the actor's own tanh
+network, started at zero, so the actor begins as the clone and can move each action component by at
+most alpha (in the action's [-1, 1] units) from it. The actor's optimizer steps r only.
 `ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
 of the policy's state dict (checkpoints keep it).
 """
@@ -74,22 +80,47 @@ class ChosenTarget(nn.Module):
         return chosen
 
 
+class ResidualHead(nn.Module):
+    """An actor's `mu` as a bounded residual on the reference's (module docstring): features (n, d) ->
+    (n, k) clamp(reference_mu(f) + scale * residual(f), -1, 1). Only `residual` is a registered child
+    (the actor's parameters and optimizer); its last Linear starts at zero, so the head starts as the
+    reference. Both nets read the same features (the policy's inputs, tsrl.agents.learners)."""
+
+    _reference: nn.Module
+
+    def __init__(self, residual: nn.Sequential, reference: nn.Module, scale: float):
+        super().__init__()
+        self.residual = residual
+        object.__setattr__(self, "_reference", reference)  # not a child: the policy's frozen clone
+        self.scale = scale
+        last = [m for m in residual.modules() if isinstance(m, nn.Linear)][-1]
+        with th.no_grad():
+            last.weight.zero_()
+            last.bias.zero_()
+
+    def forward(self, features: th.Tensor) -> th.Tensor:
+        return th.clamp(self._reference(features) + self.scale * self.residual(features), -1.0, 1.0)
+
+
 class ReferenceTD3Policy(LayerNormTD3Policy):
     """TD3's MultiInputPolicy (with LayerNorm, tsrl.agents.learners) plus a frozen `reference` actor with
     dropout `reference_dropout` after each hidden layer (as BC's), which the critic chooses against in
     acting and in the TD target (module docstring). The reference starts as the actor;
     tsrl.agents.bc.pretrain_actor clones the demonstrations into it and copies it into the actors.
 
-    It acts by the choice where the `choice_acts` buffer (a () bool tensor, in the state dict) is
+    With `residual` > 0 the actor and its target are ResidualHeads on the reference (module
+    docstring). It acts by the choice where the `choice_acts` buffer (a () bool tensor, in the state dict) is
     True, else by the clone alone; `episode_policy` (CHOICE or CLONE), where set, overrides it for a
     training episode (tsrl.agents.acting_gate)."""
 
     reference_dropout: float
+    residual: float
     choice_acts: th.Tensor
     episode_policy: str | None = None
 
-    def __init__(self, *args: Any, reference_dropout: float = 0.1, **kwargs: Any):
+    def __init__(self, *args: Any, reference_dropout: float = 0.1, residual: float = 0.0, **kwargs: Any):
         object.__setattr__(self, "reference_dropout", reference_dropout)  # before _build runs
+        object.__setattr__(self, "residual", residual)
         super().__init__(*args, **kwargs)
 
     def _build(self, lr_schedule: Any) -> None:
@@ -102,6 +133,9 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         self.reference.requires_grad_(False)
         self.reference.set_training_mode(False)
         self.register_buffer("choice_acts", th.tensor(False))
+        if self.residual > 0:  # the actor's own network becomes the residual (the same parameters)
+            for actor in (self.actor, self.actor_target):
+                actor.mu = ResidualHead(actor.mu, self.reference.mu, self.residual)  # type: ignore[assignment]
         # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
         self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
 
@@ -111,7 +145,10 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         self.reference.set_training_mode(False)
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
-        return super()._get_constructor_parameters() | {"reference_dropout": self.reference_dropout}
+        return super()._get_constructor_parameters() | {
+            "reference_dropout": self.reference_dropout,
+            "residual": self.residual,
+        }
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         clone = self.reference(observation)
