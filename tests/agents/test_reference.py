@@ -151,13 +151,15 @@ def test_the_reference_stays_the_clone_and_the_normaliser_the_demonstrations(rea
     )
 
 
-def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path):
+@pytest.mark.parametrize("residual", [0.0, 0.3])
+def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path, residual):
     from tsrl.deploy.contract import POLICY, read_contract
     from tsrl.deploy.export import TOLERANCE, export_policy, task_observations, torch_actions
     from tsrl.deploy.exported import exported_env
     from tsrl.deploy.policy import OnnxPolicy
 
-    cfg = fast(reach_demos)
+    base = fast(reach_demos)
+    cfg = dataclasses_replace(base, agent=dataclasses_replace(base.agent, residual=residual))
     venv = make_vec_env(cfg)
     model = make_agent(cfg, venv)
     with th.no_grad():  # an actor that has moved away from its clone: the two proposals differ
