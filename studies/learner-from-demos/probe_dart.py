@@ -20,7 +20,6 @@ import gymnasium as gym
 import numpy as np
 import run
 
-from tsrl.agents import train
 from tsrl.agents.config import TrainConfig
 from tsrl.agents.demo_files import ARRAYS, Demonstrations, load_demos, save_demos
 from tsrl.agents.demonstrators import demo_seeds
@@ -89,17 +88,7 @@ def main() -> None:
     arm = f"dart{args.demos}-s{args.noise}"
     path = args.out / "demos" / f"{args.task}-{arm}.npz"
     save_demos(Demonstrations(**arrays, meta=meta), path)
-    cfg = run.arm_config(f"bc{args.demos}", args.task, args.seed, path)
-    run_dir = train(cfg, args.out / arm / args.task, progress_bar=False)
-    row = {
-        "task": args.task,
-        "arm": arm,
-        "seed": args.seed,
-        **run.metrics(run_dir, cfg),
-        "commit": run.commit(),
-    }
-    run.append_row(row, run.PROBES_CSV)
-    print(row, flush=True)
+    run.bc_probe(arm, args.task, args.seed, path, args.out)
 
 
 if __name__ == "__main__":

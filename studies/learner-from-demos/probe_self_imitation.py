@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 import run
 
-from tsrl.agents import train
 from tsrl.agents.demo_files import ARRAYS, Demonstrations, load_demos, save_demos
 from tsrl.agents.demonstrators import record_demos
 
@@ -57,17 +56,7 @@ def main() -> None:
             own.append(recorded)
         path = args.out / "demos" / f"{args.task}-{args.demos}-{arm}.npz"
         save_demos(merged(scripted, own), path)
-        cfg = run.arm_config(f"bc{args.demos}", args.task, args.seed, path)
-        last_run = train(cfg, args.out / arm / args.task, progress_bar=False)
-        row = {
-            "task": args.task,
-            "arm": arm,
-            "seed": args.seed,
-            **run.metrics(last_run, cfg),
-            "commit": run.commit(),
-        }
-        run.append_row(row, run.PROBES_CSV)
-        print(row, flush=True)
+        last_run = run.bc_probe(arm, args.task, args.seed, path, args.out)
 
 
 if __name__ == "__main__":

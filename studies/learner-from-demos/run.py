@@ -209,6 +209,17 @@ def train_arm(
         print(row, flush=True)
 
 
+def bc_probe(arm: str, task: str, seed: int, demos: Path, out: Path) -> Path:
+    """Pre-registration 1's BC on the demonstration file `demos` (a probe's own), trained under
+    out/arm/task; its row goes to data/probes.csv as `arm`. Returns the run folder."""
+    cfg = arm_config("bc100", task, seed, demos)  # the bc arm's configuration; the file is the probe's
+    run_dir = train(cfg, out / arm / task, progress_bar=False)
+    row = {"task": task, "arm": arm, "seed": seed, **metrics(run_dir, cfg), "commit": commit()}
+    append_row(row, PROBES_CSV)
+    print(row, flush=True)
+    return run_dir
+
+
 def read_rows() -> list[dict[str, str]]:
     if not RUNS_CSV.is_file():
         return []
