@@ -595,13 +595,14 @@ class TrainConfig:
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
         runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
-        penalty `__action-l2-<weight>`.
+        penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
         suffix += "__init" if self.init_from is not None else ""
         suffix += "" if self.agent.learner == "paper" else f"__{self.agent.learner}"
         suffix += f"__action-l2-{self.agent.action_l2:g}" if self.agent.action_l2 else ""
+        suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property
