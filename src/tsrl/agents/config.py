@@ -325,6 +325,11 @@ class AgentConfig:
     clamp(clone(s) + alpha * r(s), -1, 1) with r its own network started at zero (residual policy
     learning; tsrl.agents.reference), so it moves each action component at most alpha from the clone's;
     0 (default): the actor is a policy of its own, started as a copy of the clone."""
+    return_bound: float = 0.0
+    """Weight of a loss that pulls each critic value up to the discounted return its episode achieved
+    from there under the row's goal, where it is below it (a lower bound of the optimal value:
+    Monte Carlo augmented actor-critic, Wilcox et al. 2022; tsrl.agents.return_bound); ddpg, td3 or
+    sac with feature-aware HER and gamma < 1. 0 (default): none."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -377,8 +382,23 @@ class AgentConfig:
                 f"td3 or ddpg and demonstrations (got learner {self.learner!r}, algo {self.algo!r}, demos "
                 f"{self.demos.path!r}); accepted without them: 0"
             )
+        self._check_return_bound()
         if self.algo == BC:
             self._check_bc()
+
+    def _check_return_bound(self) -> None:
+        if not is_number(self.return_bound) or not 0 <= self.return_bound < math.inf:
+            raise InvalidConfig(
+                f"return_bound {self.return_bound!r}: accepted: a finite number >= 0 (0: no bound)"
+            )
+        if self.return_bound > 0 and (
+            self.algo not in ("ddpg", "td3", "sac") or self.her.relabel != "feature" or not self.gamma < 1
+        ):
+            raise InvalidConfig(
+                f"return_bound {self.return_bound!r} bounds a ddpg, td3 or sac critic under feature HER with "
+                f"gamma < 1 (got algo {self.algo!r}, her relabel {self.her.relabel!r}, gamma {self.gamma!r}); "
+                "accepted with these: 0"
+            )
 
     @property
     def starts_from_clone(self) -> bool:
@@ -595,7 +615,8 @@ class TrainConfig:
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
         runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
-        penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`.
+        penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
+        `__return-bound-<weight>`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
@@ -603,6 +624,7 @@ class TrainConfig:
         suffix += "" if self.agent.learner == "paper" else f"__{self.agent.learner}"
         suffix += f"__action-l2-{self.agent.action_l2:g}" if self.agent.action_l2 else ""
         suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
+        suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

@@ -96,6 +96,8 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
             goal_selection_strategy=self.goal_selection_strategy.name.lower(),
             relabel_features=self.relabel_features,
         )
+        if self.return_gamma is not None:
+            buffer.track_returns(self.return_gamma)
         t = demos.episode_steps
         for i in range(demos.n_episodes):
             for step in range(t):
@@ -124,6 +126,9 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
         assert self.demo_buffer is not None
         demo = self.demo_buffer.sample(n, env)
         self.last_demo_batch = demo
+        if self.last_returns is not None:
+            assert self.demo_buffer.last_returns is not None  # track_returns reaches both
+            self.last_returns = th.cat((self.last_returns, self.demo_buffer.last_returns))
         self.last_batch = DictReplayBufferSamples(
             observations={
                 k: th.cat((replay.observations[k], demo.observations[k])) for k in replay.observations
@@ -137,6 +142,12 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
             rewards=th.cat((replay.rewards, demo.rewards)),
         )
         return self.last_batch
+
+    def track_returns(self, gamma: float) -> None:
+        """FeatureHerReplayBuffer's, for the demonstration buffer too."""
+        super().track_returns(gamma)
+        if self.demo_buffer is not None:
+            self.demo_buffer.track_returns(gamma)
 
     def set_env(self, env: VecEnv) -> None:
         super().set_env(env)

@@ -29,6 +29,7 @@ from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
 from .reference import ReferenceTD3Policy
+from .return_bound import attach_return_bound
 
 #: stable-baselines3's (or sb3-contrib's) class of each algorithm name (DDPG for "ddpg", ...).
 ALGO_CLASSES: dict[str, type[OffPolicyAlgorithm]] = {
@@ -194,6 +195,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         model = algo_class(a)(policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
         attach_action_penalty(model, a.action_l2)
+    if a.return_bound > 0:  # returns as a lower bound of the critic (agents/return_bound.py)
+        attach_return_bound(model, a.return_bound, a.gamma)
     return model
 
 

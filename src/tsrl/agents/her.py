@@ -7,6 +7,9 @@ next observation through the environment's `relabel(obs, new_goal)`, vectorised 
 a relabelled transition is exactly what the environment would have emitted with the goal there. It
 works on the raw stored values; normalisation (VecNormalize) is applied afterwards.
 
+Where `track_returns(gamma)` is on (tsrl.agents.return_bound), `sample` also gives each row's
+discounted return from its step to its episode's end under the row's own (relabelled) goal.
+
 The buffer also pickles compactly (only the filled part of its arrays), so checkpoints of a short
 run stay small, and can grow when a resumed run gets a larger budget.
 
@@ -39,8 +42,13 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
             `env.relabel`; False gives stable-baselines3's plain HER (for comparisons).
 
     The latest batch `sample` returned is `last_batch` (for losses added to the actor's, such as the
-    action penalty of tsrl.agents.action_penalty); it is not pickled.
+    action penalty of tsrl.agents.action_penalty), and, with `track_returns` on, its rows' returns
+    `last_returns` (n, 1); neither is pickled.
     """
+
+    return_gamma: float | None = None
+    """The discount of `last_returns`; None (default): no returns are computed."""
+    last_returns: th.Tensor | None = None
 
     def __init__(
         self,
@@ -82,6 +90,17 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         assert self.env is not None, "call set_env() after unpickling"
         return self.env.env_method("relabel", obs, new_goals, indices=[0])[0]
 
+    def _get_real_samples(
+        self,
+        batch_indices: np.ndarray,
+        env_indices: np.ndarray,
+        env: VecNormalize | None = None,
+    ) -> DictReplayBufferSamples:
+        """HerReplayBuffer's, noting the rows' stored goals for `last_returns`."""
+        goals = self.observations["desired_goal"][batch_indices, env_indices]
+        self._sampled_goals.append((batch_indices, env_indices, goals))
+        return super()._get_real_samples(batch_indices, env_indices, env)
+
     def _get_virtual_samples(
         self,
         batch_indices: np.ndarray,
@@ -98,6 +117,7 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         else:
             infos = [{} for _ in range(len(batch_indices))]
         new_goals = self._sample_goals(batch_indices, env_indices)
+        self._sampled_goals.append((batch_indices, env_indices, new_goals))
 
         # One vectorised call for observations and next observations: same goal for both.
         n = len(batch_indices)
@@ -125,9 +145,45 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         )
 
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> DictReplayBufferSamples:  # type: ignore[override]
-        """HerReplayBuffer's sample, kept as `last_batch`."""
+        """HerReplayBuffer's sample, kept as `last_batch` (and its rows' returns as `last_returns`)."""
+        self._sampled_goals: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self.last_batch: DictReplayBufferSamples | None = super().sample(batch_size, env)
+        self.last_returns = None
+        if self.return_gamma is not None:  # rows in the order sampled: real, then relabelled
+            returns = [self.returns_to_go(*rows, self.return_gamma) for rows in self._sampled_goals]
+            self.last_returns = self.to_torch(np.concatenate(returns).astype(np.float32).reshape(-1, 1))
         return self.last_batch
+
+    def track_returns(self, gamma: float) -> None:
+        """From now on `sample` also sets `last_returns` with discount `gamma` in (0, 1)."""
+        assert 0 < gamma < 1 and self.relabel_features  # plain HER's relabelled goals are SB3's own
+        self.return_gamma = gamma
+
+    def returns_to_go(
+        self, batch_indices: np.ndarray, env_indices: np.ndarray, goals: np.ndarray, gamma: float
+    ) -> np.ndarray:
+        """(n,) for stored transitions (their rows in a complete episode) and goals (n, g): the
+        discounted sum of the env's rewards (`compute_reward` of each later next achieved goal and
+        the row's goal) from the row's step t to its episode's last step T - 1, with the last step's
+        reward held after the episode (the time limit cut it, not the task):
+
+            G_t = sum_{k=t}^{T-1} gamma^(k-t) r_k + gamma^(T-t) r_{T-1} / (1 - gamma)
+        """
+        n = len(batch_indices)
+        if n == 0:
+            return np.zeros(0)
+        start = self.ep_start[batch_indices, env_indices]
+        length = self.ep_length[batch_indices, env_indices]
+        remaining = length - (batch_indices - start) % self.buffer_size  # T - t >= 1
+        offsets = np.arange(int(remaining.max()))
+        row, col = np.nonzero(offsets[None, :] < remaining[:, None])
+        later = (batch_indices[row] + offsets[col]) % self.buffer_size
+        achieved = self.next_observations["achieved_goal"][later, env_indices[row]]
+        assert self.env is not None
+        rewards = np.zeros((n, len(offsets)))
+        rewards[row, col] = self.env.env_method("compute_reward", achieved, goals[row], None, indices=[0])[0]
+        last = rewards[np.arange(n), remaining - 1]
+        return rewards @ gamma**offsets + gamma**remaining * last / (1 - gamma)
 
     # -- compact pickling and growth ------------------------------------------------------------
     @property
@@ -138,6 +194,8 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
         state["last_batch"] = None
+        state.pop("last_returns", None)
+        state.pop("_sampled_goals", None)
         n = self.n_stored
         if n < self.buffer_size:  # store only the filled rows; __setstate__ pads them back
             for name in _DATA_ARRAYS:

@@ -39,6 +39,7 @@ from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoin
 from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss, load_run_demos
+from .return_bound import attach_return_bound
 from .evaluation import EvaluationStopped, Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, algo_class, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
@@ -183,6 +184,8 @@ class _Session:
                 attach_bc_loss(model, cfg.agent.demos)
             if cfg.agent.action_l2 > 0:
                 attach_action_penalty(model, cfg.agent.action_l2)
+            if cfg.agent.return_bound > 0:
+                attach_return_bound(model, cfg.agent.return_bound, cfg.agent.gamma)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
             if self.venv.has_attr("continue_from"):  # DemoResets: its curriculum goes on, not from its start

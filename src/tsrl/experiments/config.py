@@ -471,7 +471,7 @@ def check_run_names(exp: ExperimentConfig, where: str = "experiment") -> None:
         if first is not cfg and first.env_id == cfg.env_id:
             raise InvalidConfig(
                 f"{where}: two [[agents]] give one run folder name {cfg.run_name!r}; accepted: agents that "
-                "differ in what a run's name says (her relabel, demonstrations on or off, learner, action_l2)"
+                "differ in what a run's name says (her relabel, demonstrations on or off, learner, action_l2, residual, return_bound)"
             )
         if first is not cfg:
             raise InvalidConfig(
