@@ -39,13 +39,13 @@ from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoin
 from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss, load_run_demos
-from .return_bound import attach_return_bound
 from .evaluation import EvaluationStopped, Evaluator, eval_seeds
 from .factory import ALGO_CLASSES, algo_class, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
 from .reference import ReferenceTD3Policy
+from .return_bound import attach_return_bound
 from .run_folder import (
     CONFIG_FILE,
     LEARNING_CURVE,
