@@ -9,7 +9,9 @@ Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrati
 seed 0), 8,000 gradient steps; margin100 / margin10: `--learner fast` with the same demonstrations
 as it is now (pre-registration 8: pre-registration 6's learner with a reward at half the task's
 success radius); bound100 / bound10: margin's with `--return-bound 1` (the episodes' returns as
-a lower bound of the critic, tsrl.agents.return_bound); radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
+a lower bound of the critic, tsrl.agents.return_bound); adapt100 / adapt10: bound's with
+`adaptive_noise` (the explore episodes' noise scaled to keep them winnable, tsrl.agents.acting_gate);
+radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
 that of commit 35ff8dc (pre-registration 5: lcb's learner, and the clone acts until the choice is
@@ -83,7 +85,7 @@ EVAL_FREQ = {"PandaPickPlaceGripper-v0": 1_250, "UR5ePickPlace-v0": 1_250}  # ot
 #: pre-registration 9). Their rows without it are of the old demonstrations.
 NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 #: The arms this commit runs (the others name the commits that ran them).
-ACCEPTED_ARMS = "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10"
+ACCEPTED_ARMS = "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10"
 
 
 def budget(task: str, n: int) -> int:
@@ -120,10 +122,14 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(("margin", "radius", "bound")):  # radius: the reward at the task's own tolerances
-        options = {"reward_scale": 1.0} if arm.startswith("radius") else {}
-        if arm.startswith("bound"):  # margin's, with the episodes' returns as the critic's lower bound
+    if arm.startswith(("margin", "radius", "bound", "adapt")):  # radius: the reward at the task's tolerances
+        options: dict[str, Any] = {"reward_scale": 1.0} if arm.startswith("radius") else {}
+        if arm.startswith(
+            ("bound", "adapt")
+        ):  # margin's, with the episodes' returns as the critic's lower bound
             options = {"return_bound": 1.0}
+        if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable
+            options["adaptive_noise"] = True
         agent = AgentConfig(learner="fast", demos=demo_cfg, **options)
         return TrainConfig(
             env_id=f"tsrl/{task}", seed=seed, total_timesteps=budget(task, demo_count(arm)),

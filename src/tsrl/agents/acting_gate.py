@@ -15,6 +15,14 @@ episodes its place in the cycle explores. Every episode is training data. `Gated
 episode kinds (`_sample_action`) and the bookkeeping at episode ends (`_store_transition`); the
 decision is the policy's `choice_acts` buffer, so a saved policy acts as decided when loaded without
 its algorithm.
+
+With `adapt_noise` on, the explore episodes' success is measured too, and the scale of their noise
+(of AgentConfig.action_noise) adapts to keep them winnable (as parameter-space noise adapts its scale
+to a target, Plappert et al. 2018): once the last `WINDOW` explore episodes' success is below
+`NOISE_DOWN` times the choice's, the scale halves (down to `NOISE_FLOOR`); at or above `NOISE_UP`
+times it, it doubles (up to 1); each change starts a new window. On the stack the preset's noise
+(std 0.1) takes the clone from 0.66 to 0.07 (studies/learner-from-demos, probe_noise.py), so three
+quarters of its own episodes were failures made by the noise.
 """
 
 from __future__ import annotations
@@ -28,11 +36,19 @@ from stable_baselines3.common.noise import ActionNoise
 
 from .reference import CHOICE, CLONE, ReferenceTD3Policy
 
-EPISODE_KINDS = ("explore", CHOICE, "explore", CLONE)
+EXPLORE = "explore"
+"""The episodes that act by the choice plus the (scaled) noise."""
+EPISODE_KINDS = (EXPLORE, CHOICE, EXPLORE, CLONE)
 WINDOW = 20
 """Measured episodes of each kind compared (the latest)."""
 MIN_EPISODES = 10
 """Measured episodes each kind needs before the choice may act."""
+NOISE_DOWN = 0.75
+"""The explore episodes' success, as a share of the choice's, below which the noise halves."""
+NOISE_UP = 0.95
+"""The share at or above which the noise doubles (up to its configured std)."""
+NOISE_FLOOR = 1 / 16
+"""The smallest scale of the noise."""
 
 
 @dataclass
@@ -42,21 +58,41 @@ class ActingGate:
     episodes: int = 0
     """Training episodes ended."""
     measured: dict[str, list[bool]] = field(default_factory=lambda: {CHOICE: [], CLONE: []})
+    adapt_noise: bool = False
+    """Measure the explore episodes and adapt their noise's scale (module docstring)."""
+    noise_scale: float = 1.0
+    """The explore episodes' noise as a share of its configured std."""
 
     @property
     def kind(self) -> str:
         """The kind of the episode under way."""
         kind = EPISODE_KINDS[self.episodes % len(EPISODE_KINDS)]
-        return "explore" if kind == CLONE and len(self.measured[CLONE]) == WINDOW else kind
+        return EXPLORE if kind == CLONE and len(self.measured[CLONE]) == WINDOW else kind
 
     def end_episode(self, success: bool) -> None:
-        if self.kind in self.measured:
-            self.measured[self.kind] = [*self.measured[self.kind], success][-WINDOW:]
+        kind = self.kind
+        if kind in self.measured or (kind == EXPLORE and self.adapt_noise):
+            self.measured[kind] = [*self.measured.get(kind, []), success][-WINDOW:]
+        if kind == EXPLORE and self.adapt_noise:
+            self._adapt_noise()
         self.episodes += 1
+
+    def _adapt_noise(self) -> None:
+        explore, choice = self.measured[EXPLORE], self.measured[CHOICE]
+        if len(explore) < WINDOW or len(choice) < MIN_EPISODES or not any(choice):
+            return
+        share = self.success(EXPLORE) / self.success(CHOICE)
+        if share < NOISE_DOWN and self.noise_scale > NOISE_FLOOR:
+            self.noise_scale /= 2
+        elif share >= NOISE_UP and self.noise_scale < 1:
+            self.noise_scale *= 2
+        else:
+            return
+        self.measured[EXPLORE] = []  # judged again at the new scale
 
     def success(self, kind: str) -> float:
         """Measured success of `kind` over its window (nan before its first episode)."""
-        window = self.measured[kind]
+        window = self.measured.get(kind, [])
         return float(np.mean(window)) if window else float("nan")
 
     @property
@@ -81,10 +117,11 @@ class GatedTD3(TD3):
     ) -> tuple[np.ndarray, np.ndarray]:
         kind = self.gate.kind
         self.policy.episode_policy = CLONE if kind == CLONE else CHOICE
+        noise = action_noise if kind == EXPLORE else None
+        if noise is not None and self.gate.adapt_noise:
+            noise = ScaledNoise(noise, self.gate.noise_scale)
         try:
-            return super()._sample_action(
-                learning_starts, action_noise if kind == "explore" else None, n_envs
-            )
+            return super()._sample_action(learning_starts, noise, n_envs)
         finally:
             self.policy.episode_policy = None
 
@@ -105,3 +142,20 @@ class GatedTD3(TD3):
             self.logger.record("gate/choice_success", self.gate.success(CHOICE))
             self.logger.record("gate/clone_success", self.gate.success(CLONE))
             self.logger.record("gate/choice_acts", float(self.gate.choice_acts))
+            if self.gate.adapt_noise:
+                self.logger.record("gate/explore_success", self.gate.success(EXPLORE))
+                self.logger.record("gate/noise_scale", self.gate.noise_scale)
+
+
+class ScaledNoise(ActionNoise):
+    """`noise`'s draws times `scale` (the same random numbers)."""
+
+    def __init__(self, noise: ActionNoise, scale: float):
+        super().__init__()
+        self.noise, self.scale = noise, scale
+
+    def __call__(self) -> np.ndarray:
+        return self.scale * self.noise()
+
+    def reset(self) -> None:
+        self.noise.reset()

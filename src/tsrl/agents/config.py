@@ -330,6 +330,11 @@ class AgentConfig:
     from there under the row's goal, where it is below it (a lower bound of the optimal value:
     Monte Carlo augmented actor-critic, Wilcox et al. 2022; tsrl.agents.return_bound); ddpg, td3 or
     sac with feature-aware HER and gamma < 1. 0 (default): none."""
+    adaptive_noise: bool = False
+    """The fast learner's explore episodes measured and their noise's scale adapted to keep them
+    winnable: halved while their success is below 3/4 of the noise-free choice's, doubled back (up
+    to action_noise) at 95 % of it (tsrl.agents.acting_gate). False (default): action_noise
+    throughout."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -383,6 +388,14 @@ class AgentConfig:
                 f"{self.demos.path!r}); accepted without them: 0"
             )
         self._check_return_bound()
+        if not isinstance(self.adaptive_noise, bool):
+            raise InvalidConfig(f"adaptive_noise {self.adaptive_noise!r}: accepted: true or false")
+        if self.adaptive_noise and not (self.has_reference and self.action_noise > 0):
+            raise InvalidConfig(
+                f"adaptive_noise adapts the fast learner's explore noise: it needs --learner fast, algo td3 or "
+                f"ddpg, demonstrations and action_noise > 0 (got learner {self.learner!r}, algo {self.algo!r}, "
+                f"demos {self.demos.path!r}, action_noise {self.action_noise!r}); accepted without them: false"
+            )
         if self.algo == BC:
             self._check_bc()
 
@@ -616,7 +629,7 @@ class TrainConfig:
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
         runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
-        `__return-bound-<weight>`.
+        `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
@@ -625,6 +638,7 @@ class TrainConfig:
         suffix += f"__action-l2-{self.agent.action_l2:g}" if self.agent.action_l2 else ""
         suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
         suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
+        suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property
