@@ -97,8 +97,9 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         env: VecNormalize | None = None,
     ) -> DictReplayBufferSamples:
         """HerReplayBuffer's, noting the rows' stored goals for `last_returns`."""
-        goals = self.observations["desired_goal"][batch_indices, env_indices]
-        self._sampled_goals.append((batch_indices, env_indices, goals))
+        if self.return_gamma is not None:
+            goals = self.observations["desired_goal"][batch_indices, env_indices]
+            self._sampled_goals.append((batch_indices, env_indices, goals))
         return super()._get_real_samples(batch_indices, env_indices, env)
 
     def _get_virtual_samples(
@@ -117,7 +118,8 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         else:
             infos = [{} for _ in range(len(batch_indices))]
         new_goals = self._sample_goals(batch_indices, env_indices)
-        self._sampled_goals.append((batch_indices, env_indices, new_goals))
+        if self.return_gamma is not None:
+            self._sampled_goals.append((batch_indices, env_indices, new_goals))
 
         # One vectorised call for observations and next observations: same goal for both.
         n = len(batch_indices)
