@@ -280,9 +280,17 @@ TARGETS = {
 
 
 #: The learner arms and the pre-registration whose rules they are judged by (README).
-LEARNER_ARMS = {"fast": "2", "ref": "3", "lcb": "4", "gate": "5", "igate": "6", "margin": "8"}
+LEARNER_ARMS = {
+    "fast": "2",
+    "ref": "3",
+    "lcb": "4",
+    "gate": "5",
+    "igate": "6",
+    "margin": "8",
+    "bound": "14-15",
+}
 #: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
-NEW_DEMO_ARMS = {"margin": "9", "radius": "10"}
+NEW_DEMO_ARMS = {"margin": "9", "radius": "10", "bound": "16"}
 
 
 def verdicts() -> None:
