@@ -123,10 +123,11 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
     if arm.startswith(("margin", "radius", "bound", "adapt")):  # radius: the reward at the task's tolerances
-        options: dict[str, Any] = {"reward_scale": 1.0} if arm.startswith("radius") else {}
-        if arm.startswith(
-            ("bound", "adapt")
-        ):  # margin's, with the episodes' returns as the critic's lower bound
+        # margin and radius: the preset of pre-registration 8, before the return bound joined it
+        options: dict[str, Any] = {"return_bound": 0.0}
+        if arm.startswith("radius"):
+            options["reward_scale"] = 1.0
+        if arm.startswith(("bound", "adapt")):  # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable
             options["adaptive_noise"] = True

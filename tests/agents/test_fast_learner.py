@@ -16,7 +16,7 @@ import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.action_penalty import actor_action
 from tsrl.agents.bc import DemoBatches
-from tsrl.agents.config import DemoConfig
+from tsrl.agents.config import DemoConfig, HerConfig, InvalidConfig
 from tsrl.agents.demo_files import load_demos, save_demos
 from tsrl.agents.demonstrators import record_demos
 from tsrl.agents.demos import BCLoss, DemoReplayBuffer, first_q
@@ -48,6 +48,17 @@ def test_the_fast_preset_resolves_and_given_options_win(reach_demos):
     paper = AgentConfig()
     assert (paper.algo, paper.gamma, paper.learning_starts, paper.action_noise) == ("ddpg", 0.95, 500, 0.2)
     assert paper.demos.bc_anchor is None and paper.reward_scale == 1.0
+
+
+def test_the_fast_preset_bounds_its_critic_only_with_demonstrations_and_where_the_bound_fits(reach_demos):
+    assert fast(reach_demos).agent.return_bound == 1.0  # pre-registration 17 of the study
+    assert fast(reach_demos, return_bound=0.0).agent.return_bound == 0.0  # given wins
+    assert AgentConfig(learner="fast").return_bound is None  # no demonstrations: no bound
+    unfit = fast(reach_demos, her=HerConfig(relabel="plain")).agent  # no feature HER: no returns
+    assert unfit.return_bound is None and fast(reach_demos, gamma=1.0).agent.return_bound is None
+    assert AgentConfig(demos=DemoConfig(path=str(reach_demos))).return_bound == 0.0  # paper: none
+    with pytest.raises(InvalidConfig, match="return_bound 1.0 bounds"):
+        fast(reach_demos, her=HerConfig(relabel="plain"), return_bound=1.0)  # asked for: one line
 
 
 def test_demonstrations_learn_under_the_runs_reward_scale_and_their_file_keeps_the_tasks(reach_demos):
@@ -132,3 +143,15 @@ def test_a_run_folder_from_before_the_reward_scale_loads_with_the_tasks_reward(r
     (tmp_path / CONFIG_FILE).write_text(json.dumps(data))
     old = load_config(tmp_path)
     assert old.agent.reward_scale == 1.0 and "reward_scale" not in old.env_kwargs
+
+
+def test_a_run_folder_from_before_the_return_bound_loads_without_it(reach_demos, tmp_path):
+    import json
+
+    from tsrl.agents.run_folder import CONFIG_FILE, load_config
+
+    data = fast(reach_demos).to_dict()
+    assert data["agent"]["return_bound"] == 1.0  # a new run names what it uses
+    del data["agent"]["return_bound"]  # a fast run's folder written before the field: no bound
+    (tmp_path / CONFIG_FILE).write_text(json.dumps(data))
+    assert load_config(tmp_path).agent.return_bound == 0.0

@@ -78,7 +78,7 @@ def test_fast_preset_fills_unset_options_and_explicit_ones_win(reach_demos):
     later = dataclasses.replace(without, demos=dataclasses.replace(without.demos, path=str(reach_demos)))
     assert later.demos.reset_prob == preset["demos_reset_prob"]  # a file given later (experiments)
     cfg = TrainConfig(agent=fast)
-    assert cfg.run_name.endswith("__demos__fast")
+    assert cfg.run_name.endswith("__demos__fast__return-bound-1")
     again = AgentConfig(**{k: getattr(fast, k) for k in ("learner", "layer_norm", "utd")}, demos=fast.demos)
     assert again == fast  # resolved values stay as they are when read back (config.json)
 
@@ -443,7 +443,7 @@ def test_an_experiment_file_takes_learner_fast_and_its_recorded_demonstrations(t
         preset["demos_batch_share"],
     )
     assert run.agent.demos.reset_prob == preset["demos_reset_prob"]  # the experiment's demonstrations
-    assert run.run_name.endswith("__demos__fast")
+    assert run.run_name.endswith("__demos__fast__return-bound-1")
 
 
 def test_the_frontier_curriculum_moves_a_demonstrations_frontier_only_on_k_of_k_successes():

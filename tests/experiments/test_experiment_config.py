@@ -185,7 +185,7 @@ def test_agents_are_a_grid_axis_each_the_agent_table_with_its_changes(tmp_path):
     assert [c.agent.demos.active for c in runs[:3]] == [True, True, False]  # the third: no demonstrations
     assert [c.run_name.removeprefix("tsrl-UR5eReach-v0__fs1__taskspace__") for c in runs[:3]] == [
         "ddpg__s0__demos",
-        "td3__s0__demos__fast",
+        "td3__s0__demos__fast__return-bound-1",
         "ddpg__s0",
     ]  # the fast learner's own algorithm where the grid gives none
 

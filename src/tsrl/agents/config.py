@@ -45,21 +45,22 @@ LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: clone kept frozen beside the actor with the critic choosing between them in acting and in the TD
 #: target (IBRL; tsrl.agents.reference), and the observation normaliser fixed at the demonstrations'
 #: statistics (as the clone was fitted), and a reward that counts success only within half the
-#: task's tolerances (a margin; success is judged at the tolerances). demos_reset_prob applies only
-#: where demonstrations are on;
+#: task's tolerances (a margin; success is judged at the tolerances), and with demonstrations the
+#: episodes' discounted returns as a lower bound of the critic (return_bound; tsrl.agents.return_bound).
+#: demos_reset_prob and return_bound apply only where demonstrations are on;
 #: bc_pretrain, reference and fixed_normalizer are not options.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
         "algo": "ddpg", "layer_norm": "none", "utd": None, "learning_starts": 500, "gamma": 0.95,
         "action_noise": 0.2, "demos_batch_share": 0.125, "demos_reset_prob": 0.0, "demos_bc_anchor": None,
         "demos_bc_anchor_warmup": 0, "bc_pretrain": False, "reference": False, "fixed_normalizer": False,
-        "reward_scale": 1.0,
+        "reward_scale": 1.0, "return_bound": 0.0,
     },
     "fast": {
         "algo": "td3", "layer_norm": "critic", "utd": 2.0, "learning_starts": 0, "gamma": 0.98,
         "action_noise": 0.1, "demos_batch_share": 0.5, "demos_reset_prob": None, "demos_bc_anchor": 0.25,
         "demos_bc_anchor_warmup": 2_500, "bc_pretrain": True, "reference": True, "fixed_normalizer": True,
-        "reward_scale": 0.5,
+        "reward_scale": 0.5, "return_bound": 1.0,
     },
 }  # fmt: skip
 HER_RELABEL: tuple[str, ...] = typing.get_args(HerRelabel)
@@ -325,11 +326,12 @@ class AgentConfig:
     clamp(clone(s) + alpha * r(s), -1, 1) with r its own network started at zero (residual policy
     learning; tsrl.agents.reference), so it moves each action component at most alpha from the clone's;
     0 (default): the actor is a policy of its own, started as a copy of the clone."""
-    return_bound: float = 0.0
+    return_bound: float | None = None
     """Weight of a loss that pulls each critic value up to the discounted return its episode achieved
     from there under the row's goal, where it is below it (a lower bound of the optimal value:
     Monte Carlo augmented actor-critic, Wilcox et al. 2022; tsrl.agents.return_bound); ddpg, td3 or
-    sac with feature-aware HER and gamma < 1. 0 (default): none."""
+    sac with feature-aware HER and gamma < 1; 0: none. Default: the learner's with demonstrations
+    where it applies (paper: 0; fast: 1), else none."""
     adaptive_noise: bool = False
     """The fast learner's explore episodes measured and their noise's scale adapted to keep them
     winnable: halved while their success is below 3/4 of the noise-free choice's, doubled back (up
@@ -400,13 +402,13 @@ class AgentConfig:
             self._check_bc()
 
     def _check_return_bound(self) -> None:
+        if self.return_bound is None:
+            return
         if not is_number(self.return_bound) or not 0 <= self.return_bound < math.inf:
             raise InvalidConfig(
                 f"return_bound {self.return_bound!r}: accepted: a finite number >= 0 (0: no bound)"
             )
-        if self.return_bound > 0 and (
-            self.algo not in ("ddpg", "td3", "sac") or self.her.relabel != "feature" or not self.gamma < 1
-        ):
+        if self.return_bound > 0 and not self._bound_applies:
             raise InvalidConfig(
                 f"return_bound {self.return_bound!r} bounds a ddpg, td3 or sac critic under feature HER with "
                 f"gamma < 1 (got algo {self.algo!r}, her relabel {self.her.relabel!r}, gamma {self.gamma!r}); "
@@ -418,6 +420,11 @@ class AgentConfig:
         """The actor is pre-trained by behaviour cloning before the first env step (the learner's
         bc_pretrain, with demonstrations and bc_steps > 0)."""
         return bool(LEARNER_PRESETS[self.learner]["bc_pretrain"]) and self.demos.active and self.bc_steps > 0
+
+    @property
+    def _bound_applies(self) -> bool:
+        """A return bound fits the critic: ddpg, td3 or sac under feature HER with gamma < 1."""
+        return self.algo in ("ddpg", "td3", "sac") and self.her.relabel == "feature" and self.gamma < 1
 
     @property
     def has_reference(self) -> bool:
@@ -494,6 +501,9 @@ class AgentConfig:
                 "bc_weight > 0; accepted without: reset_prob 0, reset_curriculum_steps 0, "
                 "reset_curriculum_success 0"
             )
+        if self.return_bound is None and demos.active and self._bound_applies:
+            # None stays None (no bound) otherwise, for the same reason as reset_prob's below
+            object.__setattr__(self, "return_bound", preset["return_bound"])
         if demos.reset_prob is None and demos.active and preset["demos_reset_prob"]:
             # None stays None (no resets) otherwise: a file given later (dataclasses.replace, as
             # experiments add theirs, or with --resume) finds the same config as the paper's runs have

@@ -143,6 +143,8 @@ def load_config(run_dir: Path | str) -> TrainConfig:
     agent = data.get("agent") if isinstance(data, dict) else None
     if isinstance(agent, dict) and "reward_scale" not in agent:  # written before the field: the task's
         agent["reward_scale"] = 1.0  # reward is what it ran with, whatever its learner's preset is now
+    if isinstance(agent, dict) and "return_bound" not in agent:  # written before the field: no bound
+        agent["return_bound"] = 0.0
     env_id = data.get("env_id") if isinstance(data, dict) else None
     gone = isinstance(env_id, str) and env_id.endswith(TASK_FILE_SUFFIX) and not Path(env_id).is_file()
     copy = task_record.task_copy(run_dir)[0] if gone else None
