@@ -50,12 +50,12 @@ def test_the_fast_preset_resolves_and_given_options_win(reach_demos):
     assert paper.demos.bc_anchor is None and paper.reward_scale == 1.0
 
 
-def test_the_fast_preset_bounds_its_critic_only_with_demonstrations_and_where_the_bound_fits(reach_demos):
+def test_the_fast_preset_bounds_its_critic_where_the_bound_fits(reach_demos):
     assert fast(reach_demos).agent.return_bound == 1.0  # pre-registration 17 of the study
     assert fast(reach_demos, return_bound=0.0).agent.return_bound == 0.0  # given wins
-    assert AgentConfig(learner="fast").return_bound is None  # no demonstrations: no bound
+    assert AgentConfig(learner="fast").return_bound == 1.0  # a file given later keeps it (experiments)
     unfit = fast(reach_demos, her=HerConfig(relabel="plain")).agent  # no feature HER: no returns
-    assert unfit.return_bound is None and fast(reach_demos, gamma=1.0).agent.return_bound is None
+    assert unfit.return_bound == 0.0 and fast(reach_demos, gamma=1.0).agent.return_bound == 0.0
     assert AgentConfig(demos=DemoConfig(path=str(reach_demos))).return_bound == 0.0  # paper: none
     with pytest.raises(InvalidConfig, match="return_bound 1.0 bounds"):
         fast(reach_demos, her=HerConfig(relabel="plain"), return_bound=1.0)  # asked for: one line

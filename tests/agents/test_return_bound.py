@@ -45,7 +45,7 @@ def _returns_written_out(buffer, row: int, goal: np.ndarray, gamma: float) -> fl
 
 
 def test_the_default_has_no_bound_and_the_same_run():
-    assert not AgentConfig().return_bound  # the paper's learner: none (None without demonstrations)
+    assert AgentConfig().return_bound == 0.0
     assert tiny().run_name == tiny(return_bound=0.0).run_name
     assert tiny(return_bound=1.0).run_name.endswith("__s0__return-bound-1")
     default, explicit = _model(), _model(return_bound=0.0)

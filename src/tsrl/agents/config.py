@@ -45,9 +45,9 @@ LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 #: clone kept frozen beside the actor with the critic choosing between them in acting and in the TD
 #: target (IBRL; tsrl.agents.reference), and the observation normaliser fixed at the demonstrations'
 #: statistics (as the clone was fitted), and a reward that counts success only within half the
-#: task's tolerances (a margin; success is judged at the tolerances), and with demonstrations the
-#: episodes' discounted returns as a lower bound of the critic (return_bound; tsrl.agents.return_bound).
-#: demos_reset_prob and return_bound apply only where demonstrations are on;
+#: task's tolerances (a margin; success is judged at the tolerances), and the episodes' discounted
+#: returns as a lower bound of the critic where it fits (return_bound; tsrl.agents.return_bound).
+#: demos_reset_prob applies only where demonstrations are on;
 #: bc_pretrain, reference and fixed_normalizer are not options.
 LEARNER_PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
@@ -326,12 +326,12 @@ class AgentConfig:
     clamp(clone(s) + alpha * r(s), -1, 1) with r its own network started at zero (residual policy
     learning; tsrl.agents.reference), so it moves each action component at most alpha from the clone's;
     0 (default): the actor is a policy of its own, started as a copy of the clone."""
-    return_bound: float | None = None
+    return_bound: float = None  # type: ignore[assignment]
     """Weight of a loss that pulls each critic value up to the discounted return its episode achieved
     from there under the row's goal, where it is below it (a lower bound of the optimal value:
     Monte Carlo augmented actor-critic, Wilcox et al. 2022; tsrl.agents.return_bound); ddpg, td3 or
-    sac with feature-aware HER and gamma < 1; 0: none. Default: the learner's with demonstrations
-    where it applies (paper: 0; fast: 1), else none."""
+    sac with feature-aware HER and gamma < 1; 0: none. Default: the learner's where it fits (paper:
+    0; fast: 1), else 0."""
     adaptive_noise: bool = False
     """The fast learner's explore episodes measured and their noise's scale adapted to keep them
     winnable: halved while their success is below 3/4 of the noise-free choice's, doubled back (up
@@ -402,8 +402,6 @@ class AgentConfig:
             self._check_bc()
 
     def _check_return_bound(self) -> None:
-        if self.return_bound is None:
-            return
         if not is_number(self.return_bound) or not 0 <= self.return_bound < math.inf:
             raise InvalidConfig(
                 f"return_bound {self.return_bound!r}: accepted: a finite number >= 0 (0: no bound)"
@@ -481,6 +479,8 @@ class AgentConfig:
         for name in ("algo", "layer_norm", "utd", "learning_starts", "gamma", "action_noise", "reward_scale"):
             if getattr(self, name) is None:
                 object.__setattr__(self, name, preset[name])
+        if self.return_bound is None:
+            object.__setattr__(self, "return_bound", preset["return_bound"] if self._bound_applies else 0.0)
         demos = self.demos
         if demos.batch_share is None:
             demos = dataclasses.replace(demos, batch_share=preset["demos_batch_share"])
@@ -501,9 +501,6 @@ class AgentConfig:
                 "bc_weight > 0; accepted without: reset_prob 0, reset_curriculum_steps 0, "
                 "reset_curriculum_success 0"
             )
-        if self.return_bound is None and demos.active and self._bound_applies:
-            # None stays None (no bound) otherwise, for the same reason as reset_prob's below
-            object.__setattr__(self, "return_bound", preset["return_bound"])
         if demos.reset_prob is None and demos.active and preset["demos_reset_prob"]:
             # None stays None (no resets) otherwise: a file given later (dataclasses.replace, as
             # experiments add theirs, or with --resume) finds the same config as the paper's runs have

@@ -197,7 +197,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         model = algo_class(a)(policy, env, **kwargs)
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
         attach_action_penalty(model, a.action_l2)
-    if a.return_bound:  # returns as a lower bound of the critic (agents/return_bound.py)
+    if a.return_bound > 0:  # returns as a lower bound of the critic (agents/return_bound.py)
         attach_return_bound(model, a.return_bound, a.gamma)
     return model
 

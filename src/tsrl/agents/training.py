@@ -184,7 +184,7 @@ class _Session:
                 attach_bc_loss(model, cfg.agent.demos)
             if cfg.agent.action_l2 > 0:
                 attach_action_penalty(model, cfg.agent.action_l2)
-            if cfg.agent.return_bound:
+            if cfg.agent.return_bound > 0:
                 attach_return_bound(model, cfg.agent.return_bound, cfg.agent.gamma)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
