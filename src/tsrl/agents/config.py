@@ -422,7 +422,8 @@ class AgentConfig:
     @property
     def _bound_applies(self) -> bool:
         """A return bound fits the critic: ddpg, td3 or sac under feature HER with gamma < 1."""
-        return self.algo in ("ddpg", "td3", "sac") and self.her.relabel == "feature" and self.gamma < 1
+        fits = self.algo in ("ddpg", "td3", "sac") and self.her.relabel == "feature"
+        return fits and is_number(self.gamma) and self.gamma < 1
 
     @property
     def has_reference(self) -> bool:
