@@ -7,9 +7,10 @@ data/runs.csv; `table` prints the study's table from that file.
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
 seed 0), 8,000 gradient steps; margin100 / margin10: `--learner fast` with the same demonstrations
-as it is now (pre-registration 8: pre-registration 6's learner with a reward at half the task's
-success radius); bound100 / bound10: margin's with `--return-bound 1` (the episodes' returns as
-a lower bound of the critic, tsrl.agents.return_bound); adapt100 / adapt10: bound's with
+and `--return-bound 0` (pre-registration 8: pre-registration 6's learner with a reward at half the
+task's success radius); bound100 / bound10: margin's with `--return-bound 1` (the episodes' returns
+as a lower bound of the critic, tsrl.agents.return_bound; `--learner fast` itself since
+pre-registration 17); adapt100 / adapt10: bound's with
 `adaptive_noise` (the explore episodes' noise scaled to keep them winnable, tsrl.agents.acting_gate);
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
