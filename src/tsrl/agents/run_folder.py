@@ -128,6 +128,11 @@ class RunState:
         return self.env_steps + self.bc_gradient_steps
 
 
+#: AgentConfig fields added after runs were written, with the value those runs ran with: the task's
+#: reward (reward_scale 1) and no return bound.
+AGENT_FIELDS_ADDED = {"reward_scale": 1.0, "return_bound": 0.0}
+
+
 def load_config(run_dir: Path | str) -> TrainConfig:
     """The TrainConfig of a run folder (validated; a task file that is gone through the run's copy)."""
     run_dir = Path(run_dir)
@@ -141,10 +146,9 @@ def load_config(run_dir: Path | str) -> TrainConfig:
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise NotARunFolder(run_dir, f"{CONFIG_FILE} is not valid JSON: {err}") from None
     agent = data.get("agent") if isinstance(data, dict) else None
-    if isinstance(agent, dict) and "reward_scale" not in agent:  # written before the field: the task's
-        agent["reward_scale"] = 1.0  # reward is what it ran with, whatever its learner's preset is now
-    if isinstance(agent, dict) and "return_bound" not in agent:  # written before the field: no bound
-        agent["return_bound"] = 0.0
+    if isinstance(agent, dict):  # written before a field: what it ran with, whatever its preset is now
+        for key, value in AGENT_FIELDS_ADDED.items():
+            agent.setdefault(key, value)
     env_id = data.get("env_id") if isinstance(data, dict) else None
     gone = isinstance(env_id, str) and env_id.endswith(TASK_FILE_SUFFIX) and not Path(env_id).is_file()
     copy = task_record.task_copy(run_dir)[0] if gone else None
