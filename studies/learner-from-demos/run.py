@@ -12,6 +12,8 @@ task's success radius); bound100 / bound10: margin's with `--return-bound 1` (th
 as a lower bound of the critic, tsrl.agents.return_bound; `--learner fast` itself since
 pre-registration 17); adapt100 / adapt10: bound's with
 `adaptive_noise` (the explore episodes' noise scaled to keep them winnable, tsrl.agents.acting_gate);
+reset100 / reset10: bound's with `--demos-reset-prob 0.5` (half of the training episodes start from a
+state of a demonstration, uniform over its episodes and steps; Nair et al. 2018; pre-registration 19);
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
@@ -86,7 +88,10 @@ EVAL_FREQ = {"PandaPickPlaceGripper-v0": 1_250, "UR5ePickPlace-v0": 1_250}  # ot
 #: pre-registration 9). Their rows without it are of the old demonstrations.
 NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 #: The arms this commit runs (the others name the commits that ran them).
-ACCEPTED_ARMS = "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10"
+ACCEPTED_ARMS = (
+    "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
+    "reset100, reset10"
+)
 
 
 def budget(task: str, n: int) -> int:
@@ -123,13 +128,17 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(("margin", "radius", "bound", "adapt")):  # radius: the reward at the task's tolerances
-        # margin and radius: the preset of pre-registration 8, before the return bound joined it
+    if arm.startswith(("margin", "radius", "bound", "adapt", "reset")):
+        # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(("bound", "adapt")):  # margin's, with the returns as the critic's lower bound
+        if arm.startswith(("bound", "adapt", "reset")):
+            # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
+        if arm.startswith("reset"):
+            # bound's, half of the training episodes started from a demonstration's state
+            demo_cfg = dataclasses.replace(demo_cfg, reset_prob=0.5)
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable
             options["adaptive_noise"] = True
         agent = AgentConfig(learner="fast", demos=demo_cfg, **options)
