@@ -240,10 +240,20 @@ def bc_probe(arm: str, task: str, seed: int, demos: Path, out: Path) -> Path:
     return run_dir
 
 
+#: Probe rows that a pre-registration counts as rows of its screen: (task, arm, seed) -> pre-registration.
+COUNTED_PROBES = {("PandaPickPlaceGripper-v0", "bound100", "0"): "18"}
+
+
 def read_rows() -> list[dict[str, str]]:
-    if not RUNS_CSV.is_file():
+    """The screens' rows: data/runs.csv and the probe rows of COUNTED_PROBES."""
+    rows = _read_csv(RUNS_CSV)
+    return rows + [r for r in _read_csv(PROBES_CSV) if (r["task"], r["arm"], r["seed"]) in COUNTED_PROBES]
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    if not path.is_file():
         return []
-    with open(RUNS_CSV, newline="") as f:
+    with open(path, newline="") as f:
         return list(csv.DictReader(f))
 
 
@@ -298,7 +308,7 @@ LEARNER_ARMS = {
     "gate": "5",
     "igate": "6",
     "margin": "8",
-    "bound": "14-15",
+    "bound": "14-15, 18",
 }
 #: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
 NEW_DEMO_ARMS = {"margin": "9", "radius": "10", "bound": "16"}

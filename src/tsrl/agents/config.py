@@ -158,7 +158,7 @@ class DemoConfig:
     reset_prob: Annotated[float | None, arg(name="demos-reset-prob")] = None
     """Probability that a training episode starts from a demonstration's state (a random episode and
     step of the file, restored exactly; Nair et al. 2018) instead of the task's reset. Default: the
-    learner's where demonstrations are on (paper: None, no resets; fast: 0.5); without them None."""
+    learner's where demonstrations are on (paper and fast: None, no resets); without them None."""
     reset_curriculum_steps: Annotated[int, arg(name="demos-reset-curriculum-steps")] = 0
     """0: the restored step is uniform over the demonstration; N > 0: a reverse curriculum, the
     restored step drawn from the last steps of the demonstration, a window that grows linearly from
