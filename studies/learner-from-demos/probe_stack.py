@@ -13,7 +13,10 @@ fits (box: the first, to its goal on the table; box_b: the second, onto it; plac
 (The study's tables made before this class was added have no "second knocked": their "second not
 placed" holds both.)
 
-    python studies/learner-from-demos/probe_stack.py RUN_DIR [RUN_DIR ...] [--episodes 100]
+    python studies/learner-from-demos/probe_stack.py RUN_DIR [RUN_DIR ...] [--episodes 100] [--knocks]
+
+`--knocks` also prints, per "first knocked" episode, the step at which the first box last left its
+goal and where the second box was then, relative to the first (knock_geometry).
 
 A probe, not a screen: it looks for the cause of a plateau.
 """
@@ -52,30 +55,50 @@ def stack_class(first: np.ndarray, second: np.ndarray, goals: np.ndarray) -> str
     )
 
 
-def probe(run_dir: Path, episodes: int) -> str:
-    """One table row for the run's newest checkpoint on its own `episodes` evaluation seeds."""
+def knock_geometry(first: np.ndarray, second: np.ndarray, tcp: np.ndarray, goals: np.ndarray) -> str:
+    """The step at which a knocked first box last left its goal, and the second box and the tool
+    centre point then, relative to the first [cm]: height above it, horizontal offset."""
+    placed = np.linalg.norm(first - goals[0], axis=1) < PLACED
+    step = int(np.flatnonzero(placed[:-1] & ~placed[1:])[-1]) + 1
+    box, hand = (second[step] - first[step]) * 100, (tcp[step] - first[step]) * 100
+    return (
+        f"step {step - 1}: second box {box[2]:+.1f} cm above the first, {np.linalg.norm(box[:2]):.1f} cm "
+        f"beside it (lifted {(second[step, 2] - second[0, 2]) * 100:.1f} cm); tcp {hand[2]:+.1f} cm above, "
+        f"{np.linalg.norm(hand[:2]):.1f} cm beside"
+    )
+
+
+def probe(run_dir: Path, episodes: int, knocks: bool = False) -> str:
+    """One table row for the run's newest checkpoint on its own `episodes` evaluation seeds; with
+    `knocks`, a line per "first knocked" episode before it (knock_geometry)."""
     evaluator, model, normalizer, checkpoint = load_run(run_dir, episodes)
     envs: list[Any] = [env.unwrapped for env in evaluator.envs]
-    boxes: list[list[np.ndarray]] = [[] for _ in envs]
+    tracks: list[list[np.ndarray]] = [[] for _ in envs]  # per step: first box, second box, tcp
     goals = np.zeros((len(envs), 2, 3))
     success = [False] * len(envs)
 
     def record(i: int, info: dict[str, Any]) -> None:
         data = envs[i].data
-        both = np.stack([data.body("box").xpos, data.body("box_b").xpos])
-        if not boxes[i]:  # the reset's positions: the boxes have not moved in the first step's physics
-            boxes[i].append(both)
-        boxes[i].append(both)
+        both = np.stack([data.body("box").xpos, data.body("box_b").xpos, data.site("tcp").xpos])
+        if not tracks[i]:  # the reset's positions: the boxes have not moved in the first step's physics
+            tracks[i].append(both)
+        tracks[i].append(both)
         goals[i] = [data.mocap_pos[envs[i].goal.marker_mocap(p)] for p in range(2)]
         success[i] = bool(info["is_success"])
 
     evaluator.evaluate(model, normalizer, on_step=record)
     evaluator.close()
-    classes = Counter(
-        stack_class(np.asarray(boxes[i])[:, 0], np.asarray(boxes[i])[:, 1], goals[i])
+    failed = {
+        i: stack_class(np.asarray(tracks[i])[:, 0], np.asarray(tracks[i])[:, 1], goals[i])
         for i in range(len(envs))
         if not success[i]
-    )
+    }
+    classes = Counter(failed.values())
+    if knocks:
+        for i, kind in failed.items():
+            if kind == "first knocked":
+                track = np.asarray(tracks[i])
+                print(f"episode {i}: {knock_geometry(track[:, 0], track[:, 1], track[:, 2], goals[i])}")
     return (
         f"| {run_dir.name[-32:]} | {checkpoint.state.env_steps:,} | {np.mean(success):.2f} | "
         + " | ".join(str(classes[c]) for c in CLASSES)
@@ -87,11 +110,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dirs", type=Path, nargs="+")
     parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--knocks", action="store_true", help="where the second box was at each knock")
     args = parser.parse_args()
     print("| run | env steps | success | " + " | ".join(CLASSES) + " |")
     print("| --- | ---: | ---: | " + " | ".join("---:" for _ in CLASSES) + " |")
     for run_dir in args.run_dirs:
-        print(probe(run_dir, args.episodes), flush=True)
+        print(probe(run_dir, args.episodes, args.knocks), flush=True)
 
 
 if __name__ == "__main__":
