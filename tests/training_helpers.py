@@ -1,6 +1,6 @@
 """Helpers of the training tests: a seconds-long TrainConfig, damaged checkpoint files, a replay
-buffer filled with random episodes, the env steps a run logged a TensorBoard scalar at, and the check
-that training on a demonstration dataset is training on its .npz file."""
+buffer filled with random episodes, the env steps a run logged a TensorBoard scalar at, the check
+that training on a demonstration dataset is training on its .npz file, and a hand-built twin critic."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
+from torch import nn
 
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.config import DemoConfig
@@ -106,3 +107,15 @@ def assert_trains_as_the_npz(npz: Path, other: Path) -> None:
     assert params_npz.keys() == params_other.keys()
     for key in params_npz:
         assert th.equal(params_npz[key], params_other[key]), key
+
+
+class HandCritic(nn.Module):
+    """Twin heads Q_i(s, a) = scale_i * (w . a) with a per-row w: the hand-built critic of the tests."""
+
+    def __init__(self, w: th.Tensor, scales: tuple[float, float]):
+        super().__init__()
+        self.w, self.scales = w, scales
+
+    def forward(self, obs: object, actions: th.Tensor) -> tuple[th.Tensor, ...]:
+        value = (self.w * actions).sum(dim=1, keepdim=True)
+        return tuple(scale * value for scale in self.scales)

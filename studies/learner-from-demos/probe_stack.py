@@ -55,17 +55,41 @@ def stack_class(first: np.ndarray, second: np.ndarray, goals: np.ndarray) -> str
     )
 
 
-def knock_geometry(first: np.ndarray, second: np.ndarray, tcp: np.ndarray, goals: np.ndarray) -> str:
+def knock_geometry(
+    first: np.ndarray, second: np.ndarray, tcp: np.ndarray, goals: np.ndarray, acted: list[tuple[str, float]]
+) -> str:
     """The step at which a knocked first box last left its goal, and the second box and the tool
-    centre point then, relative to the first [cm]: height above it, horizontal offset."""
+    centre point then, relative to the first [cm]: height above it, horizontal offset; and over the
+    8 steps before it, which proposal acted (A: actor, C: clone) with its finger command (-1 closed,
+    +1 open)."""
     placed = np.linalg.norm(first - goals[0], axis=1) < PLACED
     step = int(np.flatnonzero(placed[:-1] & ~placed[1:])[-1]) + 1
     box, hand = (second[step] - first[step]) * 100, (tcp[step] - first[step]) * 100
+    before = " ".join(f"{who}{finger:+.1f}" for who, finger in acted[max(0, step - 8) : step])
     return (
         f"step {step - 1}: second box {box[2]:+.1f} cm above the first, {np.linalg.norm(box[:2]):.1f} cm "
         f"beside it (lifted {(second[step, 2] - second[0, 2]) * 100:.1f} cm); tcp {hand[2]:+.1f} cm above, "
-        f"{np.linalg.norm(hand[:2]):.1f} cm beside"
+        f"{np.linalg.norm(hand[:2]):.1f} cm beside; acted before: {before}"
     )
+
+
+def recording_choices(policy: Any) -> list[list[tuple[str, float]]]:
+    """Wraps `policy._predict` (tsrl.agents.reference.ReferenceTD3Policy) so that each call stores, per
+    row, which proposal acted ("A" actor, "C" clone) and its last action component (the fingers), in
+    the list returned (one inner list per call)."""
+    calls: list[list[tuple[str, float]]] = []
+    predict = policy._predict
+
+    def _predict(observation: Any, deterministic: bool = False) -> Any:
+        action = predict(observation, deterministic)
+        clone = policy.reference(observation)
+        calls.append(
+            [("C" if c else "A", float(a[-1])) for c, a in zip((action == clone).all(dim=1), action)]
+        )
+        return action
+
+    policy._predict = _predict
+    return calls
 
 
 def probe(run_dir: Path, episodes: int, knocks: bool = False) -> str:
@@ -76,8 +100,11 @@ def probe(run_dir: Path, episodes: int, knocks: bool = False) -> str:
     tracks: list[list[np.ndarray]] = [[] for _ in envs]  # per step: first box, second box, tcp
     goals = np.zeros((len(envs), 2, 3))
     success = [False] * len(envs)
+    calls = recording_choices(model.policy)
+    acted: list[list[tuple[str, float]]] = [[] for _ in envs]  # per step: who acted, finger command
 
     def record(i: int, info: dict[str, Any]) -> None:
+        acted[i].append(calls[-1].pop(0))  # steps come in the order of the call's rows
         data = envs[i].data
         both = np.stack([data.body("box").xpos, data.body("box_b").xpos, data.site("tcp").xpos])
         if not tracks[i]:  # the reset's positions: the boxes have not moved in the first step's physics
@@ -98,7 +125,8 @@ def probe(run_dir: Path, episodes: int, knocks: bool = False) -> str:
         for i, kind in failed.items():
             if kind == "first knocked":
                 track = np.asarray(tracks[i])
-                print(f"episode {i}: {knock_geometry(track[:, 0], track[:, 1], track[:, 2], goals[i])}")
+                where = knock_geometry(track[:, 0], track[:, 1], track[:, 2], goals[i], acted[i])
+                print(f"episode {i}: {where}")
     return (
         f"| {run_dir.name[-32:]} | {checkpoint.state.env_steps:,} | {np.mean(success):.2f} | "
         + " | ".join(str(classes[c]) for c in CLASSES)

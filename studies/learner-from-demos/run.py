@@ -14,6 +14,8 @@ pre-registration 17); adapt100 / adapt10: bound's with
 `adaptive_noise` (the explore episodes' noise scaled to keep them winnable, tsrl.agents.acting_gate);
 reset100 / reset10: bound's with `--demos-reset-prob 0.5` (half of the training episodes start from a
 state of a demonstration, uniform over its episodes and steps; Nair et al. 2018; pre-registration 19);
+distill100 / distill10: bound's with `--distill-choice 1` (the actor cloned toward its clone where the
+critic's choice prefers the clone, tsrl.agents.choice_distillation; pre-registration 20);
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
@@ -90,7 +92,7 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 #: The arms this commit runs (the others name the commits that ran them).
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
-    "reset100, reset10"
+    "reset100, reset10, distill100, distill10"
 )
 
 
@@ -128,17 +130,20 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(("margin", "radius", "bound", "adapt", "reset")):
+    if arm.startswith(("margin", "radius", "bound", "adapt", "reset", "distill")):
         # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(("bound", "adapt", "reset")):
+        if arm.startswith(("bound", "adapt", "reset", "distill")):
             # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("reset"):
             # bound's, half of the training episodes started from a demonstration's state
             demo_cfg = dataclasses.replace(demo_cfg, reset_prob=0.5)
+        if arm.startswith("distill"):
+            # bound's, with the choice between actor and clone cloned into the actor
+            options["distill_choice"] = 1.0
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable
             options["adaptive_noise"] = True
         agent = AgentConfig(learner="fast", demos=demo_cfg, **options)

@@ -15,6 +15,7 @@ import torch as th
 from stable_baselines3 import TD3
 from stable_baselines3.common.logger import configure
 from torch import nn
+from training_helpers import HandCritic
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
@@ -26,18 +27,6 @@ from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Polic
 from tsrl.exceptions import InvalidConfig
 
 REACH = "tsrl/UR5eReach-v0"
-
-
-class HandCritic(nn.Module):
-    """Twin heads Q_i(s, a) = scale_i * (w . a) with a per-row w: the hand-built critic of the tests."""
-
-    def __init__(self, w: th.Tensor, scales: tuple[float, float]):
-        super().__init__()
-        self.w, self.scales = w, scales
-
-    def forward(self, obs: object, actions: th.Tensor) -> tuple[th.Tensor, ...]:
-        value = (self.w * actions).sum(dim=1, keepdim=True)
-        return tuple(scale * value for scale in self.scales)
 
 
 def test_choose_takes_the_proposal_whose_smaller_head_is_higher_the_actor_on_a_tie():

@@ -337,6 +337,10 @@ class AgentConfig:
     winnable: halved while their success is below 3/4 of the noise-free choice's, doubled back (up
     to action_noise) at 95 % of it (tsrl.agents.acting_gate). False (default): action_noise
     throughout."""
+    distill_choice: float = 0.0
+    """Weight of a loss that clones the fast learner's frozen clone into its actor on every row of the
+    batch where the critic prefers the clone's action, as its choice does (tsrl.agents.choice_distillation):
+    the actor learns what the choice does; needs the fast learner's reference. 0 (default): none."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -397,6 +401,16 @@ class AgentConfig:
                 f"adaptive_noise adapts the fast learner's explore noise: it needs --learner fast, algo td3 or "
                 f"ddpg, demonstrations and action_noise > 0 (got learner {self.learner!r}, algo {self.algo!r}, "
                 f"demos {self.demos.path!r}, action_noise {self.action_noise!r}); accepted without them: false"
+            )
+        if not is_number(self.distill_choice) or not 0 <= self.distill_choice < math.inf:
+            raise InvalidConfig(
+                f"distill_choice {self.distill_choice!r}: accepted: a finite number >= 0 (0: none)"
+            )
+        if self.distill_choice > 0 and not self.has_reference:
+            raise InvalidConfig(
+                f"distill_choice {self.distill_choice!r} clones the fast learner's clone into its actor: it needs "
+                f"--learner fast, algo td3 or ddpg and demonstrations (got learner {self.learner!r}, algo "
+                f"{self.algo!r}, demos {self.demos.path!r}); accepted without them: 0"
             )
         if self.algo == BC:
             self._check_bc()
@@ -637,7 +651,8 @@ class TrainConfig:
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
         runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
-        `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`.
+        `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
+        choice into the actor `__distill-choice-<weight>`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
@@ -647,6 +662,7 @@ class TrainConfig:
         suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
         suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
         suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
+        suffix += f"__distill-choice-{self.agent.distill_choice:g}" if self.agent.distill_choice else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

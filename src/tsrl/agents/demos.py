@@ -213,8 +213,12 @@ def q_filtered_bc_loss(
         mask = (q_demo > q_actor).reshape(-1)
     else:
         mask = th.ones(demo_actions.shape[0], dtype=th.bool, device=demo_actions.device)
-    squared = ((actor_actions - demo_actions) ** 2).sum(dim=1)
-    return (squared * mask).mean(), mask
+    return masked_squared_error(actor_actions, demo_actions, mask), mask
+
+
+def masked_squared_error(actions: th.Tensor, targets: th.Tensor, mask: th.Tensor) -> th.Tensor:
+    """Scalar mean over the n rows of mask * ||actions - targets||^2: actions, targets (n, k); mask (n,)."""
+    return (((actions - targets) ** 2).sum(dim=1) * mask).mean()
 
 
 class BCLoss:

@@ -25,6 +25,7 @@ from ..exceptions import InvalidConfig
 from .acting_gate import GatedTD3
 from .action_penalty import attach_action_penalty
 from .bc import BCPolicy, BehaviourCloning, DemoBatches, pretrain_actor
+from .choice_distillation import attach_choice_distillation
 from .config import ALGOS, BC, AgentConfig, TrainConfig, check_env_id, tsrl_env_ids
 from .her import FeatureHerReplayBuffer
 from .learners import policy_for
@@ -195,11 +196,20 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
             normalizer.training = False
     else:
         model = algo_class(a)(policy, env, **kwargs)
+    attach_added_losses(model, a)
+    return model
+
+
+def attach_added_losses(model: OffPolicyAlgorithm, a: AgentConfig) -> None:
+    """The losses that hook into the optimizers beside the algorithm's own, after the BC loss of the
+    demonstrations (whose anchor scales the actor's gradient accumulated before it): on a new model and
+    on one loaded to resume."""
     if a.action_l2 > 0:  # a penalty on the actor's actions (agents/action_penalty.py)
         attach_action_penalty(model, a.action_l2)
     if a.return_bound > 0:  # returns as a lower bound of the critic (agents/return_bound.py)
         attach_return_bound(model, a.return_bound, a.gamma)
-    return model
+    if a.distill_choice > 0:  # the choice between actor and clone cloned into the actor
+        attach_choice_distillation(model, a.distill_choice)
 
 
 def _make_cloner(cfg: TrainConfig, env: VecEnv, kwargs: dict[str, Any]) -> BehaviourCloning:

@@ -47,14 +47,24 @@ def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
     return th.cat(critic(obs, actions), dim=1)
 
 
+def reference_preferred(
+    critic: nn.Module, obs: PyTorchObs, actor_actions: th.Tensor, reference_actions: th.Tensor
+) -> th.Tensor:
+    """(n, 1) bool: per row, the smaller of the critic's heads strictly higher for the reference's
+    action than for the actor's (the choice's rule)."""
+    actor_low = heads(critic, obs, actor_actions).min(dim=1, keepdim=True).values
+    reference_low = heads(critic, obs, reference_actions).min(dim=1, keepdim=True).values
+    return reference_low > actor_low
+
+
 def choose(
     critic: nn.Module, obs: PyTorchObs, actor_actions: th.Tensor, reference_actions: th.Tensor
 ) -> th.Tensor:
-    """(n, k): per row, the reference's action where the smaller of its heads is strictly above the
-    smaller of the actor's, else the actor's."""
-    actor_low = heads(critic, obs, actor_actions).min(dim=1, keepdim=True).values
-    reference_low = heads(critic, obs, reference_actions).min(dim=1, keepdim=True).values
-    return th.where(reference_low > actor_low, reference_actions, actor_actions)
+    """(n, k): per row, the reference's action where it is preferred (reference_preferred), else the
+    actor's."""
+    return th.where(
+        reference_preferred(critic, obs, actor_actions, reference_actions), reference_actions, actor_actions
+    )
 
 
 class ChosenTarget(nn.Module):

@@ -33,19 +33,17 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from ..exceptions import InvalidConfig
 from ..signals import StopSignals
-from .action_penalty import attach_action_penalty
 from .bc import BehaviourCloning
 from .checkpoint import DEMO_RESETS, Checkpoint, load_checkpoint, save_checkpoint, usable_checkpoint
 from .config import BC, TrainConfig
 from .demo_files import DEMOS_RECORD, check_demo_record, demo_record
 from .demos import attach_bc_loss, load_run_demos
 from .evaluation import EvaluationStopped, Evaluator, eval_seeds
-from .factory import ALGO_CLASSES, algo_class, buffer_capacity, make_agent, make_vec_env
+from .factory import ALGO_CLASSES, algo_class, attach_added_losses, buffer_capacity, make_agent, make_vec_env
 from .her import FeatureHerReplayBuffer
 from .init_from import check_init_from, load_init
 from .plotting import plot_learning_curves
 from .reference import ReferenceTD3Policy
-from .return_bound import attach_return_bound
 from .run_folder import (
     CONFIG_FILE,
     LEARNING_CURVE,
@@ -182,10 +180,7 @@ class _Session:
             model.buffer_size = buffer.buffer_size
             if cfg.agent.demos.active:  # the demonstrations came back in the replay buffer
                 attach_bc_loss(model, cfg.agent.demos)
-            if cfg.agent.action_l2 > 0:
-                attach_action_penalty(model, cfg.agent.action_l2)
-            if cfg.agent.return_bound > 0:
-                attach_return_bound(model, cfg.agent.return_bound, cfg.agent.gamma)
+            attach_added_losses(model, cfg.agent)
             # The env restarts with a new episode, seeded from (seed, episodes done).
             self.venv.seed(int(np.random.SeedSequence([cfg.seed, state.episodes]).generate_state(1)[0]))
             if self.venv.has_attr("continue_from"):  # DemoResets: its curriculum goes on, not from its start
