@@ -22,6 +22,8 @@ from stable_baselines3 import SAC
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from torch.utils.hooks import RemovableHandle
 
+from .added_loss import AddedLoss
+
 
 def actor_action(model: OffPolicyAlgorithm, obs: dict[str, th.Tensor]) -> th.Tensor:
     """(n, k) actions in [-1, 1] of the model's actor on a batch of (normalised) observations: the
@@ -35,23 +37,14 @@ def action_l2_loss(actions: th.Tensor) -> th.Tensor:
     return (actions**2).mean()
 
 
-class ActionPenalty:
+class ActionPenalty(AddedLoss):
     """Step pre-hook of the actor optimizer: back-propagates weight * L_a on the buffer's last batch.
 
     Records train/action_l2 (L_a of the latest gradient step) in the model's logger."""
 
-    def __init__(self, model: OffPolicyAlgorithm, weight: float):
-        self.model = model
-        self.weight = weight
-
-    def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
-        batch = getattr(self.model.replay_buffer, "last_batch", None)
-        if batch is None:
-            return
-        with th.enable_grad():
-            loss = action_l2_loss(actor_action(self.model, batch.observations))
-            (self.weight * loss).backward()
-        self.model.logger.record("train/action_l2", loss.item())
+    def loss(self, batch: Any) -> tuple[th.Tensor, dict[str, float]]:
+        loss = action_l2_loss(actor_action(self.model, batch.observations))
+        return loss, {"action_l2": loss.item()}
 
 
 def actor_optimizer(model: OffPolicyAlgorithm) -> th.optim.Optimizer:

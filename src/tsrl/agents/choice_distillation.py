@@ -30,6 +30,7 @@ from torch import nn
 from torch.utils.hooks import RemovableHandle
 
 from .action_penalty import actor_action, actor_optimizer
+from .added_loss import AddedLoss
 from .demos import masked_squared_error
 from .reference import ReferenceTD3Policy, reference_preferred
 
@@ -44,30 +45,20 @@ def distillation_loss(
     return masked_squared_error(actor_actions, clone_actions, mask), mask
 
 
-class ChoiceDistillation:
+class ChoiceDistillation(AddedLoss):
     """Step pre-hook of the actor optimizer: back-propagates weight * L_D on the buffer's last batch.
 
     Records train/distill_loss and train/clone_preferred (the share of rows where the clone is
     preferred) in the model's logger (the latest actor step's)."""
 
-    def __init__(self, model: OffPolicyAlgorithm, weight: float):
-        self.model = model
-        self.weight = weight
-
-    def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
-        batch = getattr(self.model.replay_buffer, "last_batch", None)
-        if batch is None:
-            return
+    def loss(self, batch: Any) -> tuple[th.Tensor, dict[str, float]]:
         policy = self.model.policy
         assert isinstance(policy, ReferenceTD3Policy)
-        with th.enable_grad():
-            pi = actor_action(self.model, batch.observations)
-            with th.no_grad():
-                clone = policy.reference(batch.observations)
-            loss, mask = distillation_loss(policy.critic, batch.observations, pi, clone)
-            (self.weight * loss).backward()
-        self.model.logger.record("train/distill_loss", loss.item())
-        self.model.logger.record("train/clone_preferred", mask.float().mean().item())
+        pi = actor_action(self.model, batch.observations)
+        with th.no_grad():
+            clone = policy.reference(batch.observations)
+        loss, mask = distillation_loss(policy.critic, batch.observations, pi, clone)
+        return loss, {"distill_loss": loss.item(), "clone_preferred": mask.float().mean().item()}
 
 
 def attach_choice_distillation(model: OffPolicyAlgorithm, weight: float) -> RemovableHandle:

@@ -387,12 +387,8 @@ class AgentConfig:
             raise InvalidConfig(
                 f"residual {self.residual!r}: accepted: a number in [0, 1] (0: no residual actor)"
             )
-        if self.residual > 0 and not self.has_reference:
-            raise InvalidConfig(
-                f"residual {self.residual!r} corrects the fast learner's clone: it needs --learner fast, algo "
-                f"td3 or ddpg and demonstrations (got learner {self.learner!r}, algo {self.algo!r}, demos "
-                f"{self.demos.path!r}); accepted without them: 0"
-            )
+        self._needs_reference("residual", "corrects the fast learner's clone")
+        self._check_weight("return_bound", "no bound")
         self._check_return_bound()
         if not isinstance(self.adaptive_noise, bool):
             raise InvalidConfig(f"adaptive_noise {self.adaptive_noise!r}: accepted: true or false")
@@ -402,24 +398,28 @@ class AgentConfig:
                 f"ddpg, demonstrations and action_noise > 0 (got learner {self.learner!r}, algo {self.algo!r}, "
                 f"demos {self.demos.path!r}, action_noise {self.action_noise!r}); accepted without them: false"
             )
-        if not is_number(self.distill_choice) or not 0 <= self.distill_choice < math.inf:
-            raise InvalidConfig(
-                f"distill_choice {self.distill_choice!r}: accepted: a finite number >= 0 (0: none)"
-            )
-        if self.distill_choice > 0 and not self.has_reference:
-            raise InvalidConfig(
-                f"distill_choice {self.distill_choice!r} clones the fast learner's clone into its actor: it needs "
-                f"--learner fast, algo td3 or ddpg and demonstrations (got learner {self.learner!r}, algo "
-                f"{self.algo!r}, demos {self.demos.path!r}); accepted without them: 0"
-            )
+        self._check_weight("distill_choice", "none")
+        self._needs_reference("distill_choice", "clones the fast learner's clone into its actor")
         if self.algo == BC:
             self._check_bc()
 
-    def _check_return_bound(self) -> None:
-        if not is_number(self.return_bound) or not 0 <= self.return_bound < math.inf:
+    def _check_weight(self, name: str, zero: str) -> None:
+        """The loss weight `name`: a finite number >= 0, where 0 means `zero`."""
+        value = getattr(self, name)
+        if not is_number(value) or not 0 <= value < math.inf:
+            raise InvalidConfig(f"{name} {value!r}: accepted: a finite number >= 0 (0: {zero})")
+
+    def _needs_reference(self, name: str, what: str) -> None:
+        """The option `name`, where set, `what` (a phrase): only the fast learner's clone has it."""
+        value = getattr(self, name)
+        if value and not self.has_reference:
             raise InvalidConfig(
-                f"return_bound {self.return_bound!r}: accepted: a finite number >= 0 (0: no bound)"
+                f"{name} {value!r} {what}: it needs --learner fast, algo td3 or ddpg and demonstrations (got "
+                f"learner {self.learner!r}, algo {self.algo!r}, demos {self.demos.path!r}); accepted without "
+                "them: 0"
             )
+
+    def _check_return_bound(self) -> None:
         if self.return_bound > 0 and not self._bound_applies:
             raise InvalidConfig(
                 f"return_bound {self.return_bound!r} bounds a ddpg, td3 or sac critic under feature HER with "

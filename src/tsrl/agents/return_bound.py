@@ -28,6 +28,7 @@ import torch as th
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from torch.utils.hooks import RemovableHandle
 
+from .added_loss import AddedLoss
 from .her import FeatureHerReplayBuffer
 from .reference import heads
 
@@ -39,28 +40,21 @@ def return_bound_loss(values: th.Tensor, returns: th.Tensor) -> tuple[th.Tensor,
     return (shortfall**2).mean(dim=0).sum(), (shortfall > 0).float().mean()
 
 
-class ReturnBound:
+class ReturnBound(AddedLoss):
     """Step pre-hook of the critic optimizer: back-propagates weight * L_G on the buffer's last batch.
 
     Records train/return_bound_loss and train/below_return (the share of values below their return)
     in the model's logger (the latest gradient step's)."""
 
-    def __init__(self, model: OffPolicyAlgorithm, weight: float):
-        self.model = model
-        self.weight = weight
-
-    def __call__(self, optimizer: th.optim.Optimizer, args: Any, kwargs: Any) -> None:
+    def loss(self, batch: Any) -> tuple[th.Tensor, dict[str, float]] | None:
         buffer = self.model.replay_buffer
         assert isinstance(buffer, FeatureHerReplayBuffer)
-        batch, returns = buffer.last_batch, buffer.last_returns
-        if batch is None or returns is None:
-            return
-        with th.enable_grad():
-            values = heads(self.model.critic, batch.observations, batch.actions)  # type: ignore[attr-defined]
-            loss, below = return_bound_loss(values, returns)
-            (self.weight * loss).backward()
-        self.model.logger.record("train/return_bound_loss", loss.item())
-        self.model.logger.record("train/below_return", below.item())
+        returns = buffer.last_returns
+        if returns is None:
+            return None
+        values = heads(self.model.critic, batch.observations, batch.actions)  # type: ignore[attr-defined]
+        loss, below = return_bound_loss(values, returns)
+        return loss, {"return_bound_loss": loss.item(), "below_return": below.item()}
 
 
 def attach_return_bound(model: OffPolicyAlgorithm, weight: float, gamma: float) -> RemovableHandle:
