@@ -16,7 +16,8 @@ placed" holds both.)
     python studies/learner-from-demos/probe_stack.py RUN_DIR [RUN_DIR ...] [--episodes 100] [--knocks]
 
 `--knocks` also prints, per "first knocked" episode, the step at which the first box last left its
-goal and where the second box was then, relative to the first (knock_geometry).
+goal and where the second box was then, relative to the first (knock_geometry), and over won and lost
+episodes how often the finger command changed sign and the acting proposal switched (acting_summary).
 
 A probe, not a screen: it looks for the cause of a plateau.
 """
@@ -73,6 +74,32 @@ def knock_geometry(
     )
 
 
+def acting_summary(acted: list[list[tuple[str, float]]], success: list[bool]) -> str:
+    """Per episode, over won and over lost ones: the finger command's sign changes, the share of
+    them at a switch of proposal, the proposal's switches, and the clone's share of the steps."""
+    parts = []
+    for won in (True, False):
+        episodes = [a for a, ok in zip(acted, success, strict=True) if ok == won]
+        if not episodes:
+            continue
+        flips = switches = at_switch = clone_steps = steps = 0
+        for steps_acted in episodes:
+            who = [w for w, _ in steps_acted]
+            sign = np.sign([f for _, f in steps_acted])
+            steps, clone_steps = steps + len(who), clone_steps + who.count("C")
+            for t in range(1, len(who)):
+                switch = who[t] != who[t - 1]
+                switches += switch
+                if sign[t] * sign[t - 1] < 0:
+                    flips, at_switch = flips + 1, at_switch + switch
+        parts.append(
+            f"{'won' if won else 'lost'} {len(episodes)}: finger sign changes {flips / len(episodes):.1f} per "
+            f"episode ({at_switch / max(flips, 1):.2f} at a switch), proposal switches "
+            f"{switches / len(episodes):.1f} per episode, clone on {clone_steps / steps:.2f} of the steps"
+        )
+    return "; ".join(parts)
+
+
 def recording_choices(policy: Any) -> list[list[tuple[str, float]]]:
     """Wraps `policy._predict` (tsrl.agents.reference.ReferenceTD3Policy) so that each call stores, per
     row, which proposal acted ("A" actor, "C" clone) and its last action component (the fingers), in
@@ -122,6 +149,7 @@ def probe(run_dir: Path, episodes: int, knocks: bool = False) -> str:
     }
     classes = Counter(failed.values())
     if knocks:
+        print(acting_summary(acted, success))
         for i, kind in failed.items():
             if kind == "first knocked":
                 track = np.asarray(tracks[i])
