@@ -341,6 +341,11 @@ class AgentConfig:
     """Weight of a loss that clones the fast learner's frozen clone into its actor on every row of the
     batch where the critic prefers the clone's action, as its choice does (tsrl.agents.choice_distillation):
     the actor learns what the choice does; needs the fast learner's reference. 0 (default): none."""
+    clone_proposals: int = 0
+    """K > 0: the fast learner's choice ranks, besides the actor's and its clone's actions, those of K
+    thinned clones (the clone with K fixed dropout masks: a best of K + 2 by the critic, in acting and
+    in the TD target; EMaQ, Ghasemipour et al. 2021; tsrl.agents.reference); needs the fast learner's
+    reference and bc_dropout > 0. 0 (default): the actor's and the clone's only."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -400,6 +405,13 @@ class AgentConfig:
             )
         self._check_weight("distill_choice", "none")
         self._needs_reference("distill_choice", "clones the fast learner's clone into its actor")
+        check_int("clone_proposals", self.clone_proposals, 0)
+        self._needs_reference("clone_proposals", "thins the fast learner's clone")
+        if self.clone_proposals and not self.bc_dropout > 0:
+            raise InvalidConfig(
+                f"clone_proposals {self.clone_proposals!r} thins the clone by its dropout, but bc_dropout is "
+                f"{self.bc_dropout!r}; accepted: bc_dropout in (0, 1) or clone_proposals 0"
+            )
         if self.algo == BC:
             self._check_bc()
 
@@ -652,7 +664,8 @@ class TrainConfig:
         runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
         `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
-        choice into the actor `__distill-choice-<weight>`.
+        choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
+        `__clone-proposals-<K>`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
@@ -663,6 +676,7 @@ class TrainConfig:
         suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
         suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
         suffix += f"__distill-choice-{self.agent.distill_choice:g}" if self.agent.distill_choice else ""
+        suffix += f"__clone-proposals-{self.agent.clone_proposals}" if self.agent.clone_proposals else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

@@ -21,8 +21,13 @@ With `residual` alpha > 0 the actor is a bounded correction of the clone instead
 Decorator): its action is clamp(reference(s) + alpha * r(s), -1, 1) with r the actor's own tanh
 network, started at zero, so the actor begins as the clone and can move each action component by at
 most alpha (in the action's [-1, 1] units) from it. The actor's optimizer steps r only.
-`ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference is part
-of the policy's state dict (checkpoints keep it).
+With `clone_proposals` K > 0 the critic chooses among K + 2 proposals: the actor's, the clone's and
+those of K thinned clones, the clone with K fixed dropout masks (drawn once from THINNING_SEED, the
+same in every run; MC dropout's sub-networks): a best of N over samples of the behaviour model, as
+EMaQ (Ghasemipour et al. 2021) takes, with the actor's proposal first so that it keeps ties.
+
+`ReferenceTD3Policy` is a module-level class, so saved models load with it; the reference (and the
+thinned clones' masks) are part of the policy's state dict (checkpoints keep them).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from typing import Any
 
 import torch as th
 from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.td3.policies import Actor
 from torch import nn
 
 from .bc import with_dropout
@@ -40,6 +46,8 @@ CHOICE = "choice"
 """The policy that acts by `choose` between actor and clone."""
 CLONE = "clone"
 """The policy that acts by the clone alone."""
+THINNING_SEED = 0
+"""Seed of the generator that draws the thinned clones' dropout masks (the same masks in every run)."""
 
 
 def heads(critic: nn.Module, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
@@ -67,23 +75,95 @@ def choose(
     )
 
 
+def choose_among(critic: nn.Module, obs: PyTorchObs, proposals: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+    """The choice's rule over P proposals (P, n, k): per row, the proposal whose smaller critic head is
+    highest, the first of the highest where they tie. Returns the chosen actions (n, k) and their
+    proposal indices (n,)."""
+    count, n, k = proposals.shape
+    if isinstance(obs, dict):
+        repeated: PyTorchObs = {
+            key: value.repeat(count, *([1] * (value.dim() - 1))) for key, value in obs.items()
+        }
+    else:
+        repeated = obs.repeat(count, *([1] * (obs.dim() - 1)))
+    low = heads(critic, repeated, proposals.reshape(count * n, k)).min(dim=1).values.reshape(count, n)
+    index = low.argmax(dim=0)  # the first maximum: the actor's (proposal 0) on ties
+    chosen = proposals.gather(0, index.view(1, n, 1).expand(1, n, k)).squeeze(0)
+    return chosen, index
+
+
+class ThinnedClones(nn.Module):
+    """K fixed thinned copies of the reference (module docstring): obs -> (K, n, k), the reference with
+    dropout mask j (kept units scaled by 1 / (1 - p), as dropout trains them) for copy j. The masks are
+    buffers (`mask0`, `mask1`, ...: (K, h) per dropout layer of the reference's mu), drawn at
+    construction from THINNING_SEED; the reference is not a child (the policy owns it)."""
+
+    _reference: Actor
+
+    def __init__(self, reference: Actor, count: int, p: float):
+        super().__init__()
+        object.__setattr__(self, "_reference", reference)
+        self.count = count
+        widths, width = [], 0  # per dropout layer, the width of the Linear before it
+        for layer in reference.mu:
+            if isinstance(layer, nn.Linear):
+                width = layer.out_features
+            elif isinstance(layer, nn.Dropout):
+                widths.append(width)
+        if not widths:
+            raise ValueError("clone proposals need a reference with dropout (bc_dropout > 0)")
+        generator = th.Generator().manual_seed(THINNING_SEED)
+        for i, width in enumerate(widths):
+            keep = th.bernoulli(th.full((count, width), 1.0 - p), generator=generator) / (1.0 - p)
+            self.register_buffer(f"mask{i}", keep)
+        self.layers = len(widths)
+
+    def forward(self, obs: PyTorchObs) -> th.Tensor:
+        reference = self._reference
+        features = reference.extract_features(obs, reference.features_extractor)
+        x = features.unsqueeze(0).expand(self.count, *features.shape)
+        masks = iter(getattr(self, f"mask{i}") for i in range(self.layers))
+        for layer in reference.mu:
+            x = x * next(masks).unsqueeze(1) if isinstance(layer, nn.Dropout) else layer(x)
+        return x
+
+    def beside(self, actor_actions: th.Tensor, reference_actions: th.Tensor, obs: PyTorchObs) -> th.Tensor:
+        """(K + 2, n, k) the choice's proposals: the actor's and the reference's actions (n, k), then
+        the thinned clones' on `obs`."""
+        return th.cat((th.stack((actor_actions, reference_actions)), self(obs)))
+
+
 class ChosenTarget(nn.Module):
     """TD3's target actor whose action is the choice (module docstring) between its own proposal and the
     reference's, valued by the target critic. Only the target actor is a registered child: its
     parameters are TD3's polyak targets, and the reference and critic stay where the policy keeps them.
-    `reference_share` is the share of rows the reference won in the last call."""
+    `reference_share` is the share of rows the reference (or, with `thinned`, any clone) won in the
+    last call."""
 
     _reference: nn.Module
     _critic: nn.Module
+    _thinned: ThinnedClones | None
 
-    def __init__(self, actor_target: nn.Module, reference: nn.Module, critic_target: nn.Module):
+    def __init__(
+        self,
+        actor_target: nn.Module,
+        reference: nn.Module,
+        critic_target: nn.Module,
+        thinned: ThinnedClones | None = None,
+    ):
         super().__init__()
         self.actor = actor_target
         object.__setattr__(self, "_reference", reference)  # not children: owned by the policy
         object.__setattr__(self, "_critic", critic_target)
+        object.__setattr__(self, "_thinned", thinned)
         self.reference_share = 0.0
 
     def forward(self, obs: PyTorchObs) -> th.Tensor:
+        if self._thinned is not None:  # among all proposals; the clone's or a thinned clone's won
+            ranked = self._thinned.beside(self.actor(obs), self._reference(obs), obs)
+            chosen, index = choose_among(self._critic, obs, ranked)
+            self.reference_share = float((index > 0).float().mean())
+            return chosen
         proposals = self.actor(obs), self._reference(obs)
         chosen = choose(self._critic, obs, *proposals)
         self.reference_share = float((chosen == proposals[1]).all(dim=1).float().mean())
@@ -125,12 +205,22 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
 
     reference_dropout: float
     residual: float
+    clone_proposals: int
     choice_acts: th.Tensor
     episode_policy: str | None = None
+    thinned: ThinnedClones | None
 
-    def __init__(self, *args: Any, reference_dropout: float = 0.1, residual: float = 0.0, **kwargs: Any):
+    def __init__(
+        self,
+        *args: Any,
+        reference_dropout: float = 0.1,
+        residual: float = 0.0,
+        clone_proposals: int = 0,
+        **kwargs: Any,
+    ):
         object.__setattr__(self, "reference_dropout", reference_dropout)  # before _build runs
         object.__setattr__(self, "residual", residual)
+        object.__setattr__(self, "clone_proposals", clone_proposals)
         super().__init__(*args, **kwargs)
 
     def _build(self, lr_schedule: Any) -> None:
@@ -146,8 +236,11 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         if self.residual > 0:  # the actor's own network becomes the residual (the same parameters)
             for actor in (self.actor, self.actor_target):
                 actor.mu = ResidualHead(actor.mu, self.reference.mu, self.residual)  # type: ignore[assignment]
+        self.thinned = None
+        if self.clone_proposals > 0:  # masks from their own generator: the networks' draws stay as without
+            self.thinned = ThinnedClones(self.reference, self.clone_proposals, self.reference_dropout)
         # TD3 calls and polyak-updates its actor_target: a ChosenTarget is both (its parameters are the actor's)
-        self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target)  # type: ignore[assignment]
+        self.actor_target = ChosenTarget(self.actor_target, self.reference, self.critic_target, self.thinned)  # type: ignore[assignment]
 
     def set_training_mode(self, mode: bool) -> None:
         """TD3's, with the reference always acting as it does once cloned (dropout off)."""
@@ -158,13 +251,18 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         return super()._get_constructor_parameters() | {
             "reference_dropout": self.reference_dropout,
             "residual": self.residual,
+            "clone_proposals": self.clone_proposals,
         }
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         clone = self.reference(observation)
         if self.episode_policy == CLONE:
             return clone
-        chosen = choose(self.critic, observation, self.actor(observation), clone)
+        if self.thinned is not None:  # among the actor, the clone and the thinned clones
+            proposals = self.thinned.beside(self.actor(observation), clone, observation)
+            chosen = choose_among(self.critic, observation, proposals)[0]
+        else:
+            chosen = choose(self.critic, observation, self.actor(observation), clone)
         if self.episode_policy == CHOICE:
             return chosen
         return th.where(self.choice_acts, chosen, clone)  # a tensor, not a Python branch: exports as such
