@@ -187,6 +187,20 @@ def test_demonstration_reset_restores_the_recorded_state_exactly(pick_demos):
         for t in range(step, min(step + 3, demos.episode_steps)):  # and it goes on as the demonstration did
             obs = wrapped.step(demos.actions[episode, t])[0]
             assert np.array_equal(obs["observation"], demos.observation[episode, t + 1])
+    # The episode's last step says where it started; a task-started episode's does not.
+    done, info = False, {}
+    while not done:
+        _, _, terminated, truncated, info = wrapped.step(wrapped.action_space.sample())
+        done = terminated or truncated
+    assert info["demo_reset"] == wrapped.last_reset
+    task_started = DemoResets(replay, states, prob=1e-9, curriculum_steps=0, seed=3)
+    task_started.reset(seed=0)
+    assert task_started.last_reset is None  # the task's own start
+    done = False
+    while not done:
+        _, _, terminated, truncated, info = task_started.step(task_started.action_space.sample())
+        done = terminated or truncated
+    assert "demo_reset" not in info
     for env in (replay, wrapped, independent):
         env.close()
 

@@ -237,6 +237,23 @@ def test_the_gate_lets_the_choice_act_only_when_measured_strictly_better():
     assert gate.success(CHOICE) == gate.success(CLONE) == 0.5 and not gate.choice_acts
 
 
+def test_the_gate_measures_only_episodes_from_the_tasks_own_starts(reach_demos):
+    for prob in (1.0, None):  # every episode from a demonstration's state, then none
+        base = fast(reach_demos, warmup=0)
+        cfg = dataclasses_replace(
+            base,
+            agent=dataclasses_replace(
+                base.agent, demos=dataclasses_replace(base.agent.demos, reset_prob=prob)
+            ),
+        )
+        model = make_agent(cfg, make_vec_env(cfg))
+        assert isinstance(model, GatedTD3)
+        model.train = lambda *args, **kwargs: None  # type: ignore[method-assign]  # the gate alone
+        model.learn(300)
+        assert model._episode_num > 0
+        assert model.gate.episodes == (0 if prob else model._episode_num)
+
+
 class ObsCritic(nn.Module):
     """Twin heads Q_i = scale_i * sign(first observation entry) * sum(a): with a constant actor (0.5)
     and clone (-0.5), the choice is the actor's action where that entry is > 0, else the clone's."""

@@ -11,7 +11,9 @@ and the success of the last `WINDOW` episodes of each measured kind (the last st
 info["is_success"], as evaluation counts it) decides: the choice acts where its measured success is
 strictly above the clone's, each measured on at least `MIN_EPISODES`, else the clone. The clone is
 frozen (and the observation normaliser with it), so it is measured once: after its first `WINDOW`
-episodes its place in the cycle explores. Every episode is training data. `GatedTD3` is TD3 with the
+episodes its place in the cycle explores. Every episode is training data; one started from a
+demonstration's state (tsrl.agents.demo_resets) is neither measured nor counted in the cycle, so the
+gate compares the policies from the task's own starts, where evaluation runs them. `GatedTD3` is TD3 with the
 episode kinds (`_sample_action`) and the bookkeeping at episode ends (`_store_transition`); the
 decision is the policy's `choice_acts` buffer, so a saved policy acts as decided when loaded without
 its algorithm.
@@ -34,6 +36,7 @@ import numpy as np
 from stable_baselines3 import TD3
 from stable_baselines3.common.noise import ActionNoise
 
+from .demo_resets import DEMO_RESET
 from .reference import CHOICE, CLONE, ReferenceTD3Policy
 
 EXPLORE = "explore"
@@ -136,7 +139,7 @@ class GatedTD3(TD3):
     ) -> None:
         super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
         assert len(dones) == 1, "GatedTD3 trains on one env"
-        if dones[0]:
+        if dones[0] and DEMO_RESET not in infos[0]:  # measured from the task's own starts only
             self.gate.end_episode(bool(infos[0].get("is_success", False)))
             self.policy.choice_acts.fill_(self.gate.choice_acts)
             self.logger.record("gate/choice_success", self.gate.success(CHOICE))

@@ -82,6 +82,10 @@ PACE_EPISODES = 20
 PACE_STRIDE = 0.1
 
 
+DEMO_RESET = "demo_reset"
+"""The info key of a demonstration-started episode's reset and last step: (demonstration, step)."""
+
+
 class DemoResets(gym.Wrapper):
     """Starts an episode from a demonstration state with probability `prob` (module docstring).
 
@@ -187,7 +191,7 @@ class DemoResets(gym.Wrapper):
         obs = restore_state(base, self.states[episode, step])
         _, outcome = base.goal.outcome(obs["achieved_goal"], obs["desired_goal"])
         self.last_reset = (episode, step)
-        return obs, info | outcome | {"demo_reset": (episode, step)}
+        return obs, info | outcome | {DEMO_RESET: (episode, step)}
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         self.env_steps += 1
@@ -198,6 +202,7 @@ class DemoResets(gym.Wrapper):
                 truncated = True  # the frontier episode's own, shorter time limit
                 info = info | {"TimeLimit.truncated": True}
         if self.last_reset is not None and (terminated or truncated):
+            info = info | {DEMO_RESET: self.last_reset}  # the episode's end says where it started
             if self.curriculum_success:
                 self._pace(bool(info["is_success"]))
             if self.frontier_k:
