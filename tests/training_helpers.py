@@ -1,18 +1,21 @@
 """Helpers of the training tests: a seconds-long TrainConfig, damaged checkpoint files, a replay
 buffer filled with random episodes, the env steps a run logged a TensorBoard scalar at, the check
-that training on a demonstration dataset is training on its .npz file, and a hand-built twin critic."""
+that training on a demonstration dataset is training on its .npz file, a hand-built twin critic and
+saved scripted reach demonstrations."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch as th
 from torch import nn
 
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demo_files import load_demos
+from tsrl.agents.demo_files import load_demos, save_demos
+from tsrl.agents.demonstrators import record_demos
 
 
 def tiny(algo: str = "ddpg", seed: int = 0, total: int = 200, **agent: object) -> TrainConfig:
@@ -119,3 +122,9 @@ class HandCritic(nn.Module):
     def forward(self, obs: object, actions: th.Tensor) -> tuple[th.Tensor, ...]:
         value = (self.w * actions).sum(dim=1, keepdim=True)
         return tuple(scale * value for scale in self.scales)
+
+
+def saved_reach_demos(tmp_path_factory: pytest.TempPathFactory, count: int) -> Path:
+    """`count` scripted tsrl/UR5eReach-v0 demonstrations (fs1, recording seed 0), saved in a new folder."""
+    path = tmp_path_factory.mktemp("demos") / "reach.npz"
+    return save_demos(record_demos("tsrl/UR5eReach-v0", count, obs="fs1", seed=0), path)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from stable_baselines3.common.noise import NormalActionNoise
-from training_helpers import scalar_steps
+from training_helpers import saved_reach_demos, scalar_steps
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, resume, train
@@ -29,8 +29,6 @@ from tsrl.agents.acting_gate import (
     ScaledNoise,
 )
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demo_files import save_demos
-from tsrl.agents.demonstrators import record_demos
 from tsrl.exceptions import InvalidConfig
 
 REACH = "tsrl/UR5eReach-v0"
@@ -112,8 +110,7 @@ def test_scaled_noise_draws_the_same_numbers_scaled():
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 8)
 
 
 def _fast(path: Path, **agent: object) -> TrainConfig:

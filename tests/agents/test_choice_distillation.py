@@ -12,15 +12,13 @@ import pytest
 import torch as th
 from cli_runner import TINY, run_tsrl
 from stable_baselines3.common.logger import configure
-from training_helpers import HandCritic, scalar_steps
+from training_helpers import HandCritic, saved_reach_demos, scalar_steps
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env, resume, train
 from tsrl.agents.action_penalty import actor_optimizer
 from tsrl.agents.choice_distillation import ChoiceDistillation, distillation_loss
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demo_files import save_demos
-from tsrl.agents.demonstrators import record_demos
 from tsrl.agents.demos import BCLoss
 from tsrl.agents.reference import choose
 from tsrl.exceptions import InvalidConfig
@@ -30,8 +28,7 @@ REACH = "tsrl/UR5eReach-v0"
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 8)
 
 
 def fast(path: Path, total: int = 400, **agent: object) -> TrainConfig:

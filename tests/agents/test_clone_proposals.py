@@ -16,12 +16,11 @@ import torch as th
 from cli_runner import TINY, run_tsrl
 from stable_baselines3 import TD3
 from torch import nn
+from training_helpers import saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demo_files import save_demos
-from tsrl.agents.demonstrators import record_demos
 from tsrl.agents.reference import ReferenceTD3Policy, ThinnedClones, choose, choose_among
 from tsrl.exceptions import InvalidConfig
 
@@ -31,8 +30,7 @@ K = 6
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 8)
 
 
 def fast(path: Path, seed: int = 0, **agent: object) -> TrainConfig:

@@ -10,15 +10,14 @@ import numpy as np
 import pytest
 import torch as th
 from stable_baselines3.common.logger import configure
-from training_helpers import fill_with_random_episodes
+from training_helpers import fill_with_random_episodes, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.action_penalty import actor_action
 from tsrl.agents.bc import DemoBatches
 from tsrl.agents.config import DemoConfig, HerConfig, InvalidConfig
-from tsrl.agents.demo_files import load_demos, save_demos
-from tsrl.agents.demonstrators import record_demos
+from tsrl.agents.demo_files import load_demos
 from tsrl.agents.demos import BCLoss, DemoReplayBuffer, first_q
 
 REACH = "tsrl/UR5eReach-v0"
@@ -26,8 +25,7 @@ REACH = "tsrl/UR5eReach-v0"
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 8)
 
 
 def fast(path: Path, **agent: object) -> TrainConfig:

@@ -14,7 +14,7 @@ import torch as th
 from sb3_contrib import TQC
 from stable_baselines3 import DDPG
 from torch import nn
-from training_helpers import fill_with_random_episodes, tiny
+from training_helpers import fill_with_random_episodes, saved_reach_demos, tiny
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
@@ -34,8 +34,7 @@ REACH, PICK = "tsrl/UR5eReach-v0", "tsrl/UR5ePickPlace-v0"
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 4, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 4)
 
 
 @pytest.fixture(scope="module")

@@ -15,14 +15,12 @@ import torch as th
 from stable_baselines3 import TD3
 from stable_baselines3.common.logger import configure
 from torch import nn
-from training_helpers import HandCritic
+from training_helpers import HandCritic, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.acting_gate import EPISODE_KINDS, MIN_EPISODES, WINDOW, ActingGate, GatedTD3
 from tsrl.agents.config import DemoConfig
-from tsrl.agents.demo_files import save_demos
-from tsrl.agents.demonstrators import record_demos
 from tsrl.agents.reference import CHOICE, CLONE, ChosenTarget, ReferenceTD3Policy, ResidualHead, choose
 from tsrl.exceptions import InvalidConfig
 
@@ -47,8 +45,7 @@ def test_choose_takes_the_proposal_whose_smaller_head_is_higher_the_actor_on_a_t
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("demos") / "reach.npz"
-    return save_demos(record_demos(REACH, 8, obs="fs1", seed=0), path)
+    return saved_reach_demos(tmp_path_factory, 8)
 
 
 def fast(path: Path, warmup: int | None = None) -> TrainConfig:
