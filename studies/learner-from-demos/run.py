@@ -317,7 +317,7 @@ LEARNER_ARMS = {
     "gate": "5",
     "igate": "6",
     "margin": "8",
-    "bound": "14-15, 18",
+    "bound": "14-15, 18, 21, 23",
 }
 #: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
 NEW_DEMO_ARMS = {"margin": "9", "radius": "10", "bound": "16"}
