@@ -163,7 +163,7 @@ def test_the_export_is_the_choice_among_all_proposals(reach_demos, tmp_path):
     model = make_agent(cfg, venv)
     with th.no_grad():  # an actor that has moved away from its clone
         for p in model.policy.actor.parameters():
-            p.add_(0.3 * th.randn_like(p))
+            p.add_(0.05 * th.randn_like(p))
     model.policy.choice_acts.fill_(True)
     out = tmp_path / "export"
     export_policy(model, venv, cfg, out, None, None, None)

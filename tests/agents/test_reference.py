@@ -150,7 +150,7 @@ def test_the_export_is_the_choice_not_the_actor_alone(reach_demos, tmp_path, res
     model = make_agent(cfg, venv)
     with th.no_grad():  # an actor that has moved away from its clone: the two proposals differ
         for p in model.policy.actor.parameters():
-            p.add_(0.3 * th.randn_like(p))
+            p.add_(0.05 * th.randn_like(p))
     model.policy.choice_acts.fill_(True)  # as the gate sets it once the choice measured better
     out = tmp_path / "export"
     export_policy(model, venv, cfg, out, None, None, None)
