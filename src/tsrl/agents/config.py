@@ -28,6 +28,7 @@ from ..exceptions import InvalidConfig, check_int, check_positive, is_int, is_nu
 Algo = Literal["ddpg", "td3", "sac", "tqc", "bc"]
 Learner = Literal["paper", "fast"]
 LayerNorm = Literal["none", "critic", "both"]
+ActorValue = Literal["first", "lowest"]
 HerRelabel = Literal["feature", "plain"]
 HerStrategy = Literal["future", "final", "episode"]
 #: The algorithms (stable-baselines3's or sb3-contrib's class of the same name, upper case;
@@ -37,6 +38,9 @@ ALGOS: tuple[str, ...] = typing.get_args(Algo)
 BC = "bc"
 LEARNERS: tuple[str, ...] = typing.get_args(Learner)
 LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
+ACTOR_VALUES: tuple[str, ...] = typing.get_args(ActorValue)
+#: The algorithms whose critic heads AgentConfig.critics sets (stable-baselines3's n_critics).
+CRITIC_ENSEMBLE_ALGOS = ("td3", "sac", "tqc")
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
 #: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
 #: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
@@ -346,6 +350,14 @@ class AgentConfig:
     thinned clones (the clone with K fixed dropout masks: a best of K + 2 by the critic, in acting and
     in the TD target; EMaQ, Ghasemipour et al. 2021; tsrl.agents.reference); needs the fast learner's
     reference and bc_dropout > 0. 0 (default): the actor's and the clone's only."""
+    critics: int = 2
+    """Critic networks (heads) of td3, sac or tqc: TD3's target and the fast learner's choice take the
+    smallest of them (TD3's clipped double Q over N; IBRL's critic ensemble, Hu et al. 2023).
+    2 (default): TD3's twin critics."""
+    actor_value: ActorValue = "first"
+    """The critic value TD3's actor climbs: its first head (first, default: TD3's) or the lowest of its
+    heads (lowest: IBRL's, so the actor does not climb one head's over-estimates; with demonstrations
+    the Q scale of the BC-regularised actor loss is that value's too)."""
     her: HerConfig = field(default_factory=HerConfig)
     """Hindsight Experience Replay settings."""
     demos: DemoConfig = field(default_factory=DemoConfig)
@@ -412,8 +424,25 @@ class AgentConfig:
                 f"clone_proposals {self.clone_proposals!r} thins the clone by its dropout, but bc_dropout is "
                 f"{self.bc_dropout!r}; accepted: bc_dropout in (0, 1) or clone_proposals 0"
             )
+        self._check_critics()
         if self.algo == BC:
             self._check_bc()
+
+    def _check_critics(self) -> None:
+        """critics: an int >= 1, other than 2 only where the algorithm takes it; actor_value: lowest
+        for td3 only."""
+        check_int("critics", self.critics, 1)
+        if self.critics != 2 and self.algo not in CRITIC_ENSEMBLE_ALGOS:
+            raise InvalidConfig(
+                f"critics {self.critics!r} sets the critic heads of {', '.join(CRITIC_ENSEMBLE_ALGOS)}, but algo "
+                f"is {self.algo!r}; accepted with it: critics 2 (the default)"
+            )
+        _choice("actor_value", self.actor_value, ACTOR_VALUES)
+        if self.actor_value != "first" and self.algo != "td3":
+            raise InvalidConfig(
+                f"actor_value {self.actor_value!r} sets the value TD3's actor climbs, but algo is {self.algo!r}; "
+                "accepted with it: first (the default)"
+            )
 
     def _check_weight(self, name: str, zero: str) -> None:
         """The loss weight `name`: a finite number >= 0, where 0 means `zero`."""
@@ -665,7 +694,8 @@ class TrainConfig:
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
         `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
         choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
-        `__clone-proposals-<K>`.
+        `__clone-proposals-<K>`, runs with N critics other than 2 `__critics-<N>`, runs whose actor climbs
+        the lowest head `__actor-lowest`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
         suffix += "__demos" if self.agent.demos.active else ""
@@ -677,6 +707,8 @@ class TrainConfig:
         suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
         suffix += f"__distill-choice-{self.agent.distill_choice:g}" if self.agent.distill_choice else ""
         suffix += f"__clone-proposals-{self.agent.clone_proposals}" if self.agent.clone_proposals else ""
+        suffix += f"__critics-{self.agent.critics}" if self.agent.critics != 2 else ""
+        suffix += f"__actor-{self.agent.actor_value}" if self.agent.actor_value != "first" else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 
     @property

@@ -168,9 +168,13 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo == BC:
         return _make_cloner(cfg, env, kwargs)
-    policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm)  # type: ignore[arg-type]
-    if a.layer_norm != "none" or a.has_reference:
+    policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm, a.actor_value)  # type: ignore[arg-type]
+    if a.layer_norm != "none" or a.has_reference or a.actor_value != "first":
         kwargs["policy_kwargs"]["layer_norm"] = a.layer_norm
+    if a.actor_value != "first":  # default left out: saved kwargs as before
+        kwargs["policy_kwargs"]["actor_value"] = a.actor_value
+    if a.critics != 2:
+        kwargs["policy_kwargs"]["n_critics"] = a.critics
     if a.has_reference:  # the clone is made as a BC run's actor is (tsrl.agents.reference)
         kwargs["policy_kwargs"]["reference_dropout"] = a.bc_dropout
         kwargs["policy_kwargs"]["residual"] = a.residual

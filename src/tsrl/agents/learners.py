@@ -9,6 +9,10 @@ draws); only the LayerNorms are new. The policy classes are module-level, so sav
 with them (stable-baselines3 stores the class and `policy_kwargs`, `layer_norm` among them).
 
     layer_norm = "critic": every critic (and target critic) network; "both": the actor's too.
+
+TD3's policy also takes `actor_value` (AgentConfig.actor_value): with "lowest" its critics are
+`LowestHeadCritic`s, whose `q1_forward` (the value stable-baselines3's TD3 actor loss climbs) is the
+lowest of the heads instead of the first.
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ from typing import Any
 import sb3_contrib.tqc.policies as tqc_policies
 import stable_baselines3.sac.policies as sac_policies
 import stable_baselines3.td3.policies as td3_policies
-from stable_baselines3.common.policies import BasePolicy
+import torch as th
+from stable_baselines3.common.policies import BasePolicy, ContinuousCritic
+from stable_baselines3.common.type_aliases import PyTorchObs
 from torch import nn
 
 #: layer_norm values that normalise the critic / the actor (AgentConfig.layer_norm).
@@ -82,8 +88,30 @@ class _LayerNormMixin:
         return data
 
 
+class LowestHeadCritic(ContinuousCritic):
+    """SB3's ContinuousCritic whose q1_forward is the lowest of its heads: (n, 1)."""
+
+    def q1_forward(self, obs: PyTorchObs, actions: th.Tensor) -> th.Tensor:
+        return th.cat(self(obs, actions), dim=1).min(dim=1, keepdim=True).values
+
+
 class LayerNormTD3Policy(_LayerNormMixin, td3_policies.MultiInputPolicy):
-    """DDPG's and TD3's MultiInputPolicy with LayerNorm (module docstring)."""
+    """DDPG's and TD3's MultiInputPolicy with LayerNorm and the actor's value (module docstring)."""
+
+    actor_value: str
+
+    def __init__(self, *args: Any, actor_value: str = "first", **kwargs: Any):
+        object.__setattr__(self, "actor_value", actor_value)  # before BasePolicy.__init__ builds the critics
+        super().__init__(*args, **kwargs)
+
+    def make_critic(self, features_extractor: Any = None) -> Any:
+        critic = super().make_critic(features_extractor)
+        if self.actor_value == "lowest":  # the same module and draws; only q1_forward differs
+            critic.__class__ = LowestHeadCritic
+        return critic
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        return super()._get_constructor_parameters() | {"actor_value": self.actor_value}
 
 
 class LayerNormSACPolicy(_LayerNormMixin, sac_policies.MultiInputPolicy):
@@ -103,6 +131,8 @@ LAYER_NORM_POLICIES: dict[str, type[BasePolicy]] = {
 }
 
 
-def policy_for(algo: str, layer_norm: str) -> str | type[BasePolicy]:
-    """The policy argument of the algorithm: "MultiInputPolicy" (its own) without LayerNorm."""
-    return "MultiInputPolicy" if layer_norm == "none" else LAYER_NORM_POLICIES[algo]
+def policy_for(algo: str, layer_norm: str, actor_value: str = "first") -> str | type[BasePolicy]:
+    """The policy argument of the algorithm: "MultiInputPolicy" (its own) without LayerNorm and with
+    the actor climbing the first head."""
+    plain = layer_norm == "none" and actor_value == "first"
+    return "MultiInputPolicy" if plain else LAYER_NORM_POLICIES[algo]
