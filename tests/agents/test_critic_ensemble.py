@@ -43,9 +43,13 @@ def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
     return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
 
 
-def _td3(**agent: object) -> TD3:
+def _td3(seed: int = 0, **agent: object) -> TD3:
     cfg = TrainConfig(
-        env_id=REACH, obs="fs1", total_timesteps=400, seed=0, agent=AgentConfig(algo="td3", **agent)
+        env_id=REACH,
+        obs="fs1",
+        total_timesteps=400,
+        seed=seed,
+        agent=AgentConfig(algo="td3", **agent),  # type: ignore[arg-type]
     )
     model = make_agent(cfg, make_vec_env(cfg))
     assert isinstance(model, TD3)
@@ -98,6 +102,32 @@ def test_tds_actor_loss_climbs_the_lowest_head():
     assert seen and all(th.equal(gap, th.zeros_like(gap)) for gap in seen)
 
 
+def test_further_heads_leave_the_other_networks_draws_and_differ_by_seed(reach_demos):
+    twin, five, five_other_seed = _td3(), _td3(critics=5), _td3(seed=1, critics=5)
+    assert len(five.critic.q_networks) == 5 and five.critic.n_critics == 5
+    for a, b in zip(twin.actor.parameters(), five.actor.parameters(), strict=True):
+        assert th.equal(a, b)
+    for head in (0, 1):
+        for a, b in zip(
+            twin.critic.q_networks[head].parameters(), five.critic.q_networks[head].parameters(), strict=True
+        ):
+            assert th.equal(a, b)
+    for net in (five, five_other_seed):  # the target starts as the critic, head for head
+        for a, b in zip(net.critic.parameters(), net.critic_target.parameters(), strict=True):
+            assert th.equal(a, b)
+    first_weight = [next(q.parameters()) for q in five.critic.q_networks]
+    assert not any(th.equal(first_weight[i], first_weight[j]) for i in range(5) for j in range(i + 1, 5))
+    assert not th.equal(first_weight[2], next(five_other_seed.critic.q_networks[2].parameters()))
+    models = {}
+    for heads in (2, 5):  # the fast learner's clone too
+        cfg = fast(reach_demos, critics=heads)
+        models[heads] = make_agent(cfg, make_vec_env(cfg))
+    for a, b in zip(
+        models[2].policy.reference.parameters(), models[5].policy.reference.parameters(), strict=True
+    ):
+        assert th.equal(a, b)
+
+
 def test_n_critics_feed_the_choice_and_the_td_target(reach_demos):
     cfg = fast(reach_demos, critics=5, actor_value="lowest")
     model = make_agent(cfg, make_vec_env(cfg))
@@ -143,7 +173,7 @@ def test_a_saved_model_keeps_its_heads_and_its_actors_value(reach_demos, tmp_pat
     [
         ({"critics": 0}, r"^critics must be an integer >= 1; got 0"),
         ({"critics": 2.5}, r"^critics must be an integer >= 1; got 2.5"),
-        ({"critics": 4}, r"^critics 4 sets the critic heads of td3, sac, tqc, but algo is 'ddpg'; accepted"),
+        ({"critics": 4}, r"^critics 4 sets the critic heads of td3, but algo is 'ddpg'; accepted"),
         ({"actor_value": "mean"}, r"^unknown actor_value 'mean'; accepted: first, lowest$"),
         ({"actor_value": "lowest", "algo": "sac"}, r"^actor_value 'lowest' sets the value TD3's actor climbs, but algo is 'sac'"),
     ],

@@ -40,7 +40,7 @@ LEARNERS: tuple[str, ...] = typing.get_args(Learner)
 LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 ACTOR_VALUES: tuple[str, ...] = typing.get_args(ActorValue)
 #: The algorithms whose critic heads AgentConfig.critics sets (stable-baselines3's n_critics).
-CRITIC_ENSEMBLE_ALGOS = ("td3", "sac", "tqc")
+CRITIC_ENSEMBLE_ALGOS = ("td3",)
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
 #: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
 #: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
@@ -351,9 +351,10 @@ class AgentConfig:
     in the TD target; EMaQ, Ghasemipour et al. 2021; tsrl.agents.reference); needs the fast learner's
     reference and bc_dropout > 0. 0 (default): the actor's and the clone's only."""
     critics: int = 2
-    """Critic networks (heads) of td3, sac or tqc: TD3's target and the fast learner's choice take the
-    smallest of them (TD3's clipped double Q over N; IBRL's critic ensemble, Hu et al. 2023).
-    2 (default): TD3's twin critics."""
+    """Critic networks (heads) of td3: its target and the fast learner's choice take the smallest of
+    them (TD3's clipped double Q over N; IBRL's critic ensemble, Hu et al. 2023); the heads beyond two
+    are drawn from their own generator, so the other networks start as without them. 2 (default):
+    TD3's twin critics."""
     actor_value: ActorValue = "first"
     """The critic value TD3's actor climbs: its first head (first, default: TD3's) or the lowest of its
     heads (lowest: IBRL's, so the actor does not climb one head's over-estimates; with demonstrations

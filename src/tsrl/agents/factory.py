@@ -168,8 +168,9 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo == BC:
         return _make_cloner(cfg, env, kwargs)
-    policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm, a.actor_value)  # type: ignore[arg-type]
-    if a.layer_norm != "none" or a.has_reference or a.actor_value != "first":
+    own_critics = a.actor_value != "first" or a.critics != 2  # TD3's policy of tsrl.agents.learners
+    policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm, own_critics)  # type: ignore[arg-type]
+    if a.layer_norm != "none" or a.has_reference or own_critics:
         kwargs["policy_kwargs"]["layer_norm"] = a.layer_norm
     if a.actor_value != "first":  # default left out: saved kwargs as before
         kwargs["policy_kwargs"]["actor_value"] = a.actor_value

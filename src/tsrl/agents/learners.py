@@ -12,7 +12,9 @@ with them (stable-baselines3 stores the class and `policy_kwargs`, `layer_norm` 
 
 TD3's policy also takes `actor_value` (AgentConfig.actor_value): with "lowest" its critics are
 `LowestHeadCritic`s, whose `q1_forward` (the value stable-baselines3's TD3 actor loss climbs) is the
-lowest of the heads instead of the first.
+lowest of the heads instead of the first. With `n_critics` above 2 (AgentConfig.critics) the heads
+beyond the twin come from their own generator, so the actor, the twin heads and the fast learner's
+clone start as in the run without them.
 """
 
 from __future__ import annotations
@@ -88,6 +90,12 @@ class _LayerNormMixin:
         return data
 
 
+#: TD3's critic heads, drawn as stable-baselines3 draws them; AgentConfig.critics adds further ones.
+TWIN = 2
+#: Added to the run's torch seed for the generator of the heads beyond TWIN.
+FURTHER_HEADS_SEED = 7919
+
+
 class LowestHeadCritic(ContinuousCritic):
     """SB3's ContinuousCritic whose q1_forward is the lowest of its heads: (n, 1)."""
 
@@ -105,8 +113,22 @@ class LayerNormTD3Policy(_LayerNormMixin, td3_policies.MultiInputPolicy):
         super().__init__(*args, **kwargs)
 
     def make_critic(self, features_extractor: Any = None) -> Any:
-        critic = super().make_critic(features_extractor)
-        if self.actor_value == "lowest":  # the same module and draws; only q1_forward differs
+        heads = self.critic_kwargs["n_critics"]
+        self.critic_kwargs["n_critics"] = min(heads, TWIN)
+        try:  # the twin heads from the run's own draws, so every other network gets the same draws too
+            critic = super().make_critic(features_extractor)
+            if heads > TWIN:  # the further heads from their own generator, seeded from the run's seed
+                self.critic_kwargs["n_critics"] = heads - TWIN
+                with th.random.fork_rng(devices=[]):
+                    th.manual_seed(th.initial_seed() + FURTHER_HEADS_SEED)
+                    further = super().make_critic(features_extractor)
+                for q_net in further.q_networks:
+                    critic.add_module(f"qf{len(critic.q_networks)}", q_net)
+                    critic.q_networks.append(q_net)
+                critic.n_critics = heads
+        finally:
+            self.critic_kwargs["n_critics"] = heads
+        if self.actor_value == "lowest":  # the same module; only q1_forward differs
             critic.__class__ = LowestHeadCritic
         return critic
 
@@ -131,8 +153,7 @@ LAYER_NORM_POLICIES: dict[str, type[BasePolicy]] = {
 }
 
 
-def policy_for(algo: str, layer_norm: str, actor_value: str = "first") -> str | type[BasePolicy]:
-    """The policy argument of the algorithm: "MultiInputPolicy" (its own) without LayerNorm and with
-    the actor climbing the first head."""
-    plain = layer_norm == "none" and actor_value == "first"
-    return "MultiInputPolicy" if plain else LAYER_NORM_POLICIES[algo]
+def policy_for(algo: str, layer_norm: str, own_critics: bool = False) -> str | type[BasePolicy]:
+    """The policy argument of the algorithm: "MultiInputPolicy" (its own) without LayerNorm, and for
+    TD3 without the critics' options (`own_critics`: AgentConfig.critics or actor_value set)."""
+    return "MultiInputPolicy" if layer_norm == "none" and not own_critics else LAYER_NORM_POLICIES[algo]
