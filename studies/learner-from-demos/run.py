@@ -20,6 +20,8 @@ propose100 / propose10: bound's with `--clone-proposals 4` (the choice also rank
 clone with fixed dropout masks; EMaQ's best of N; tsrl.agents.reference; pre-registration 22);
 ens100 / ens10: bound's with `--critics 5 --actor-value lowest` (IBRL's critic ensemble: the choice and
 the TD target take the smallest of 5 heads, the actor climbs the lowest; pre-registration 24);
+clones100 / clones10: bound's with `--clones 5` (the reference is the mean action of 5 clones;
+pre-registration 26);
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
@@ -96,7 +98,7 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 #: The arms this commit runs (the others name the commits that ran them).
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
-    "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10"
+    "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10"
 )
 
 
@@ -134,12 +136,12 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(("margin", "radius", "bound", "adapt", "reset", "distill", "propose", "ens")):
+    if arm.startswith(("margin", "radius", "bound", "adapt", "reset", "distill", "propose", "ens", "clones")):
         # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(("bound", "adapt", "reset", "distill", "propose", "ens")):
+        if arm.startswith(("bound", "adapt", "reset", "distill", "propose", "ens", "clones")):
             # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("reset"):
@@ -150,6 +152,8 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             options["distill_choice"] = 1.0
         if arm.startswith("propose"):  # bound's, the choice ranking 4 thinned clones too
             options["clone_proposals"] = 4
+        if arm.startswith("clones"):  # bound's, the reference the mean action of 5 clones
+            options["clones"] = 5
         if arm.startswith("ens"):  # bound's, with a pessimistic ensemble of 5 critic heads
             options |= {"critics": 5, "actor_value": "lowest"}
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable

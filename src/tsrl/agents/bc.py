@@ -33,6 +33,10 @@ from ..envs.keys import OBS_KEYS
 from .action_penalty import actor_action
 from .demo_files import Demonstrations
 
+FURTHER_CLONES_SEED = 104729
+"""Added to the run's torch seed and a clone's index for the draws of a reference's clones beyond the
+first (tsrl.agents.reference.CloneEnsemble): their initial weights and their BC batches."""
+
 
 def with_dropout(mlp: nn.Sequential, p: float) -> nn.Sequential:
     """`mlp` (create_mlp's layers) with nn.Dropout(p) after each hidden activation (every ReLU)."""
@@ -102,27 +106,67 @@ def clone_step(
     return float(loss.item())
 
 
-def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
-    """`steps` BC gradient steps before any env step. With a reference (tsrl.agents.reference) the
-    clone is trained as a BC run trains its actor: the reference, with its dropout, and a fresh Adam at
-    the actor's learning rate; the actor and the target actor are then copied from it (a residual actor
-    is not: it starts as the clone by construction). Without one,
-    the actor (its deterministic action, its own optimizer), then copied into the target actor."""
-    policy: Any = model.policy
-    reference = getattr(policy, "reference", None)
-    clone: Any = model.actor if reference is None else reference  # type: ignore[attr-defined]
-    if reference is None:
-        optimizer, act = clone.optimizer, partial(actor_action, model)
-    else:
-        optimizer, act = th.optim.Adam(clone.parameters(), lr=model.lr_schedule(1), foreach=True), clone
+def _train_clone(
+    clone: Any,
+    optimizer: th.optim.Optimizer,
+    act: Callable[[dict[str, th.Tensor]], th.Tensor],
+    batches: DemoBatches,
+    steps: int,
+    batch_size: int,
+) -> None:
+    """`steps` BC steps of `clone` (an SB3 actor) in training mode; it ends frozen, dropout off."""
     clone.requires_grad_(True)
     clone.set_training_mode(True)
     for _ in range(steps):
         clone_step(act, optimizer, *batches.sample(batch_size))
     clone.set_training_mode(False)
-    clone.requires_grad_(reference is None)  # the reference stays frozen
+    clone.requires_grad_(False)
+
+
+def _clone_alone(
+    model: OffPolicyAlgorithm, clone: Any, batches: DemoBatches, steps: int, batch_size: int
+) -> None:
+    """A reference's clone trained as a BC run trains its actor: with its dropout and a fresh Adam at
+    the actor's learning rate."""
+    optimizer = th.optim.Adam(clone.parameters(), lr=model.lr_schedule(1), foreach=True)
+    _train_clone(clone, optimizer, clone, batches, steps, batch_size)
+
+
+def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, batch_size: int) -> None:
+    """`steps` BC gradient steps before any env step. With a reference (tsrl.agents.reference) the
+    clone is trained as a BC run trains its actor: the reference, with its dropout, and a fresh Adam at
+    the actor's learning rate; the actor and the target actor are then copied from it (a residual actor
+    is not: it starts as the clone by construction). Without one,
+    the actor (its deterministic action, its own optimizer), then copied into the target actor. A
+    CloneEnsemble reference trains each clone so, the first from the run's draws and the others from
+    their own (FURTHER_CLONES_SEED), and the actors start as the first."""
+    policy: Any = model.policy
+    reference = getattr(policy, "reference", None)
+    clone: Any = model.actor if reference is None else reference  # type: ignore[attr-defined]
+    members = getattr(clone, "members", None)  # a CloneEnsemble's clones, each trained alone
+    if members is not None:
+        _clone_alone(model, members[0], batches, steps, batch_size)
+        for index, member in enumerate(members[1:], start=1):  # from their own draws: the run's stay
+            numpy_state = np.random.get_state()
+            with th.random.fork_rng(devices=[]):
+                seed = th.initial_seed() + FURTHER_CLONES_SEED + index
+                th.manual_seed(seed)
+                np.random.seed(seed % 2**32)
+                _clone_alone(model, member, batches, steps, batch_size)
+            np.random.set_state(numpy_state)
+        clone = members[0]  # the actor starts as the first clone
+    elif reference is None:
+        optimizer, act = clone.optimizer, partial(actor_action, model)
+        _train_clone(clone, optimizer, act, batches, steps, batch_size)
+        clone.requires_grad_(True)  # the actor trains on
+    else:
+        _clone_alone(model, clone, batches, steps, batch_size)
     # a residual actor (tsrl.agents.reference) starts at zero on the clone: only the reference is a copy
-    copies = ("reference",) if getattr(policy, "residual", 0) > 0 else ("actor", "actor_target", "reference")
+    copies: tuple[str, ...] = ("actor", "actor_target", "reference")
+    if getattr(policy, "residual", 0) > 0:
+        copies = ("reference",)
+    elif members is not None:  # the ensemble is the reference; the actors copy its first clone
+        copies = ("actor", "actor_target")
     for name in copies:
         copy = getattr(policy, name, None)
         if copy is not None and copy is not clone:  # parameter by parameter: layers differ by dropout

@@ -350,6 +350,11 @@ class AgentConfig:
     thinned clones (the clone with K fixed dropout masks: a best of K + 2 by the critic, in acting and
     in the TD target; EMaQ, Ghasemipour et al. 2021; tsrl.agents.reference); needs the fast learner's
     reference and bc_dropout > 0. 0 (default): the actor's and the clone's only."""
+    clones: int = 1
+    """C > 1: the fast learner's reference is the mean action of C clones of the demonstrations, each
+    trained as BC trains its actor (the first as without it, the others from their own draws; the
+    actor starts as the first); cuts BC's seed-to-seed spread (tsrl.agents.reference.CloneEnsemble).
+    Needs the fast learner's reference; not with residual or clone_proposals. 1 (default): one clone."""
     critics: int = 2
     """Critic networks (heads) of td3: its target and the fast learner's choice take the smallest of
     them (TD3's clipped double Q over N; IBRL's critic ensemble, Hu et al. 2023); the heads beyond two
@@ -426,8 +431,28 @@ class AgentConfig:
                 f"{self.bc_dropout!r}; accepted: bc_dropout in (0, 1) or clone_proposals 0"
             )
         self._check_critics()
+        self._check_clones()
         if self.algo == BC:
             self._check_bc()
+
+    def _check_clones(self) -> None:
+        """clones: an int >= 1; more than one only for the fast learner's reference, without the
+        options that read a single clone's network."""
+        check_int("clones", self.clones, 1)
+        if self.clones == 1:
+            return
+        if not self.has_reference:
+            raise InvalidConfig(
+                f"clones {self.clones!r} averages the fast learner's clones: it needs --learner fast, algo td3 or "
+                f"ddpg and demonstrations (got learner {self.learner!r}, algo {self.algo!r}, demos "
+                f"{self.demos.path!r}); accepted without them: 1"
+            )
+        for name in ("residual", "clone_proposals"):
+            if getattr(self, name):
+                raise InvalidConfig(
+                    f"clones {self.clones!r} with {name} {getattr(self, name)!r}: {name} reads one clone's network; "
+                    f"accepted: clones 1, or {name} 0"
+                )
 
     def _check_critics(self) -> None:
         """critics: an int >= 1, other than 2 only where the algorithm takes it; actor_value: lowest
@@ -695,7 +720,8 @@ class TrainConfig:
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
         `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
         choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
-        `__clone-proposals-<K>`, runs with N critics other than 2 `__critics-<N>`, runs whose actor climbs
+        `__clone-proposals-<K>`, runs whose reference averages C clones `__clones-<C>`, runs with N critics
+        other than 2 `__critics-<N>`, runs whose actor climbs
         the lowest head `__actor-lowest`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
@@ -708,6 +734,7 @@ class TrainConfig:
         suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
         suffix += f"__distill-choice-{self.agent.distill_choice:g}" if self.agent.distill_choice else ""
         suffix += f"__clone-proposals-{self.agent.clone_proposals}" if self.agent.clone_proposals else ""
+        suffix += f"__clones-{self.agent.clones}" if self.agent.clones != 1 else ""
         suffix += f"__critics-{self.agent.critics}" if self.agent.critics != 2 else ""
         suffix += f"__actor-{self.agent.actor_value}" if self.agent.actor_value != "first" else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"

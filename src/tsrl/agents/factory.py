@@ -180,6 +180,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         kwargs["policy_kwargs"]["reference_dropout"] = a.bc_dropout
         kwargs["policy_kwargs"]["residual"] = a.residual
         kwargs["policy_kwargs"]["clone_proposals"] = a.clone_proposals
+        if a.clones != 1:  # default left out: saved kwargs as before
+            kwargs["policy_kwargs"]["clones"] = a.clones
     if a.algo in ("ddpg", "td3") and a.action_noise > 0:
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), a.action_noise * np.ones(n_actions))
     if a.demos.active:  # demonstration buffer beside the replay, Q-filtered BC loss (agents/demos.py)
