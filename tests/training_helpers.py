@@ -1,7 +1,8 @@
 """Helpers of the training tests: a seconds-long TrainConfig, damaged checkpoint files, a replay
 buffer filled with random episodes, the env steps a run logged a TensorBoard scalar at, the check
-that training on a demonstration dataset is training on its .npz file, a hand-built twin critic and
-saved scripted reach demonstrations."""
+that training on a demonstration dataset is training on its .npz file, a hand-built twin critic,
+saved scripted reach demonstrations, the fast learner's configuration on them and random observation
+batches."""
 
 from __future__ import annotations
 
@@ -128,3 +129,21 @@ def saved_reach_demos(tmp_path_factory: pytest.TempPathFactory, count: int) -> P
     """`count` scripted tsrl/UR5eReach-v0 demonstrations (fs1, recording seed 0), saved in a new folder."""
     path = tmp_path_factory.mktemp("demos") / "reach.npz"
     return save_demos(record_demos("tsrl/UR5eReach-v0", count, obs="fs1", seed=0), path)
+
+
+def fast_reach(path: Path, seed: int = 0, bc_steps: int = 50, **agent: object) -> TrainConfig:
+    """`--learner fast` on tsrl/UR5eReach-v0 (fs1) with the demonstrations at `path`: 400 env steps,
+    batch 64, `bc_steps` cloning steps; `agent` overrides AgentConfig fields."""
+    return TrainConfig(
+        env_id="tsrl/UR5eReach-v0", obs="fs1", total_timesteps=400, seed=seed,
+        agent=AgentConfig(
+            learner="fast", batch_size=64, bc_steps=bc_steps, demos=DemoConfig(path=str(path)), **agent  # type: ignore[arg-type]
+        ),
+    )  # fmt: skip
+
+
+def random_obs_batch(model: object, n: int, seed: int) -> dict[str, th.Tensor]:
+    """n standard-normal observations (a dict of (n, dim) tensors) of `model`'s observation space."""
+    rng = np.random.default_rng(seed)
+    space = model.observation_space  # type: ignore[attr-defined]
+    return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}

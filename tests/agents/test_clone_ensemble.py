@@ -16,12 +16,11 @@ import torch.nn.functional as F
 from cli_runner import TINY, run_tsrl
 from stable_baselines3 import TD3
 from stable_baselines3.common.vec_env import VecNormalize
-from training_helpers import saved_reach_demos
+from training_helpers import fast_reach, random_obs_batch, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
 from tsrl.agents.bc import DemoBatches
-from tsrl.agents.config import DemoConfig
 from tsrl.agents.demo_files import load_demos
 from tsrl.agents.reference import CloneEnsemble, ReferenceTD3Policy, choose
 from tsrl.exceptions import InvalidConfig
@@ -36,11 +35,7 @@ def reach_demos(tmp_path_factory) -> Path:
 
 
 def fast(path: Path, seed: int = 0, **agent: object) -> TrainConfig:
-    options: dict[str, object] = {"batch_size": 64, "bc_steps": 300} | agent
-    return TrainConfig(
-        env_id=REACH, obs="fs1", total_timesteps=400, seed=seed,
-        agent=AgentConfig(learner="fast", demos=DemoConfig(path=str(path)), **options),  # type: ignore[arg-type]
-    )  # fmt: skip
+    return fast_reach(path, seed=seed, **({"bc_steps": 300} | agent))  # type: ignore[arg-type]
 
 
 @pytest.fixture(scope="module")
@@ -50,12 +45,6 @@ def one_and_three(reach_demos):
         cfg = fast(reach_demos, clones=clones)
         models[clones] = make_agent(cfg, make_vec_env(cfg))
     return models
-
-
-def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
-    rng = np.random.default_rng(seed)
-    space = model.observation_space
-    return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
 
 
 def _same(a: th.nn.Module, b: th.nn.Module) -> bool:
@@ -80,7 +69,7 @@ def test_each_clone_fits_the_demonstrations_and_the_reference_is_their_mean(one_
     normalizer = model.get_env()
     assert isinstance(normalizer, VecNormalize)
     batches = DemoBatches(load_demos(reach_demos), normalizer)
-    obs = _obs_batch(model, 64, seed=1)
+    obs = random_obs_batch(model, 64, seed=1)
     with th.no_grad():
         members = [m(obs) for m in policy.reference.members]
         np.testing.assert_allclose(
@@ -98,7 +87,7 @@ def test_acting_and_the_target_choose_against_the_mean_action(one_and_three):
     with th.no_grad():  # an actor away from the clones
         for p in policy.actor.parameters():
             p.add_(0.05 * th.randn_like(p))
-    obs = _obs_batch(model, 64, seed=2)
+    obs = random_obs_batch(model, 64, seed=2)
     policy.choice_acts.fill_(True)
     with th.no_grad():
         mean = th.stack([m(obs) for m in policy.reference.members]).mean(dim=0)

@@ -16,11 +16,10 @@ import torch as th
 from cli_runner import TINY, run_tsrl
 from stable_baselines3 import TD3
 from torch import nn
-from training_helpers import saved_reach_demos
+from training_helpers import fast_reach, random_obs_batch, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
-from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
-from tsrl.agents.config import DemoConfig
+from tsrl.agents import AgentConfig, make_agent, make_vec_env
 from tsrl.agents.reference import ReferenceTD3Policy, ThinnedClones, choose, choose_among
 from tsrl.exceptions import InvalidConfig
 
@@ -33,13 +32,6 @@ def reach_demos(tmp_path_factory) -> Path:
     return saved_reach_demos(tmp_path_factory, 8)
 
 
-def fast(path: Path, seed: int = 0, **agent: object) -> TrainConfig:
-    return TrainConfig(
-        env_id=REACH, obs="fs1", total_timesteps=400, seed=seed,
-        agent=AgentConfig(learner="fast", batch_size=64, bc_steps=50, demos=DemoConfig(path=str(path)), **agent),
-    )  # fmt: skip
-
-
 class WeightsInObs(nn.Module):
     """Twin heads Q_i(s, a) = scale_i * (w(s) . a), w(s) the observation (a tensor) or the first entries
     of its "observation": the rows' weights travel with the rows the choice repeats."""
@@ -48,12 +40,6 @@ class WeightsInObs(nn.Module):
         w = obs if isinstance(obs, th.Tensor) else obs["observation"][:, : actions.shape[1]]
         value = (w * actions).sum(dim=1, keepdim=True)
         return value, 2.0 * value
-
-
-def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
-    rng = np.random.default_rng(seed)
-    space = model.observation_space
-    return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
 
 
 def test_the_rule_over_many_proposals_is_the_highest_smaller_head_the_first_on_a_tie():
@@ -78,11 +64,11 @@ def test_the_rule_over_many_proposals_is_the_highest_smaller_head_the_first_on_a
 
 
 def test_each_thinned_clone_is_the_clone_with_its_fixed_mask(reach_demos):
-    cfg = fast(reach_demos, clone_proposals=K)
+    cfg = fast_reach(reach_demos, clone_proposals=K)
     model = make_agent(cfg, make_vec_env(cfg))
     policy = model.policy
     assert isinstance(policy, ReferenceTD3Policy) and isinstance(policy.thinned, ThinnedClones)
-    obs = _obs_batch(model, 16, seed=1)
+    obs = random_obs_batch(model, 16, seed=1)
     p = cfg.agent.bc_dropout
     masks = list(policy.thinned._buffers.values())
     assert len(masks) == len(cfg.agent.net_arch)
@@ -105,10 +91,10 @@ def test_each_thinned_clone_is_the_clone_with_its_fixed_mask(reach_demos):
 
 
 def test_acting_and_the_td_target_take_the_best_of_all_proposals(reach_demos):
-    cfg = fast(reach_demos, clone_proposals=K)
+    cfg = fast_reach(reach_demos, clone_proposals=K)
     model = make_agent(cfg, make_vec_env(cfg))
     policy = model.policy
-    obs = _obs_batch(model, 64, seed=2)
+    obs = random_obs_batch(model, 64, seed=2)
     n_actions = model.action_space.shape[0]  # type: ignore[index]
     w = obs["observation"][:, :n_actions]
     for critic in (policy.critic, policy.critic_target):
@@ -130,7 +116,7 @@ def test_acting_and_the_td_target_take_the_best_of_all_proposals(reach_demos):
 def test_the_masks_are_every_runs_and_leave_the_networks_and_a_saved_model_keeps_them(reach_demos, tmp_path):
     models = {}
     for name, seed, proposals in (("off", 0, 0), ("on", 0, K), ("other seed", 1, K)):
-        cfg = fast(reach_demos, seed=seed, clone_proposals=proposals)
+        cfg = fast_reach(reach_demos, seed=seed, clone_proposals=proposals)
         models[name] = make_agent(cfg, make_vec_env(cfg))
     off, on, other = (models[k].policy for k in ("off", "on", "other seed"))
     assert off.thinned is None
@@ -146,7 +132,7 @@ def test_the_masks_are_every_runs_and_leave_the_networks_and_a_saved_model_keeps
     assert isinstance(loaded.policy, ReferenceTD3Policy) and loaded.policy.clone_proposals == K
     on.choice_acts.fill_(True)
     loaded.policy.choice_acts.fill_(True)
-    obs = {k: v.numpy() for k, v in _obs_batch(models["on"], 32, seed=3).items()}
+    obs = {k: v.numpy() for k, v in random_obs_batch(models["on"], 32, seed=3).items()}
     np.testing.assert_array_equal(
         loaded.predict(obs, deterministic=True)[0], models["on"].predict(obs, deterministic=True)[0]
     )
@@ -158,7 +144,7 @@ def test_the_export_is_the_choice_among_all_proposals(reach_demos, tmp_path):
     from tsrl.deploy.exported import exported_env
     from tsrl.deploy.policy import OnnxPolicy
 
-    cfg = fast(reach_demos, clone_proposals=K)
+    cfg = fast_reach(reach_demos, clone_proposals=K)
     venv = make_vec_env(cfg)
     model = make_agent(cfg, venv)
     with th.no_grad():  # an actor that has moved away from its clone
@@ -190,7 +176,7 @@ def test_proposals_without_the_clone_or_its_dropout_are_one_line(reach_demos):
     ) as err:
         AgentConfig(clone_proposals=4)  # the paper's learner: no clone
     assert "\n" not in str(err.value)
-    base = fast(reach_demos).agent
+    base = fast_reach(reach_demos).agent
     with pytest.raises(
         InvalidConfig, match=r"^clone_proposals 4 thins the clone by its dropout, but bc_dropout is 0"
     ) as err:

@@ -13,11 +13,10 @@ import pytest
 import torch as th
 from cli_runner import TINY, run_tsrl
 from stable_baselines3 import TD3
-from training_helpers import saved_reach_demos
+from training_helpers import fast_reach, random_obs_batch, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
-from tsrl.agents.config import DemoConfig
 from tsrl.agents.learners import LowestHeadCritic
 from tsrl.agents.reference import choose
 from tsrl.exceptions import InvalidConfig
@@ -28,19 +27,6 @@ REACH = "tsrl/UR5eReach-v0"
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
     return saved_reach_demos(tmp_path_factory, 8)
-
-
-def fast(path: Path, **agent: object) -> TrainConfig:
-    return TrainConfig(
-        env_id=REACH, obs="fs1", total_timesteps=400, seed=0,
-        agent=AgentConfig(learner="fast", batch_size=64, bc_steps=50, demos=DemoConfig(path=str(path)), **agent),
-    )  # fmt: skip
-
-
-def _obs_batch(model: TD3, n: int, seed: int) -> dict[str, th.Tensor]:
-    rng = np.random.default_rng(seed)
-    space = model.observation_space
-    return {k: th.as_tensor(rng.normal(0, 1, (n, *space[k].shape)), dtype=th.float32) for k in space.spaces}  # type: ignore[index]
 
 
 def _td3(seed: int = 0, **agent: object) -> TD3:
@@ -70,7 +56,7 @@ def test_the_lowest_head_is_the_actors_value_and_the_networks_keep_their_draws()
         assert isinstance(critic, LowestHeadCritic)
     for a, b in zip(first.policy.parameters(), lowest.policy.parameters(), strict=True):
         assert th.equal(a, b)  # only the value the actor climbs differs
-    obs = _obs_batch(lowest, 32, seed=1)
+    obs = random_obs_batch(lowest, 32, seed=1)
     actions = th.rand(32, lowest.action_space.shape[0]) * 2 - 1  # type: ignore[index]
     with th.no_grad():
         features = th.cat([obs[k] for k in sorted(obs)], dim=1)  # the extractor's order: sorted keys
@@ -120,7 +106,7 @@ def test_further_heads_leave_the_other_networks_draws_and_differ_by_seed(reach_d
     assert not th.equal(first_weight[2], next(five_other_seed.critic.q_networks[2].parameters()))
     models = {}
     for heads in (2, 5):  # the fast learner's clone too
-        cfg = fast(reach_demos, critics=heads)
+        cfg = fast_reach(reach_demos, critics=heads)
         models[heads] = make_agent(cfg, make_vec_env(cfg))
     for a, b in zip(
         models[2].policy.reference.parameters(), models[5].policy.reference.parameters(), strict=True
@@ -129,7 +115,7 @@ def test_further_heads_leave_the_other_networks_draws_and_differ_by_seed(reach_d
 
 
 def test_n_critics_feed_the_choice_and_the_td_target(reach_demos):
-    cfg = fast(reach_demos, critics=5, actor_value="lowest")
+    cfg = fast_reach(reach_demos, critics=5, actor_value="lowest")
     model = make_agent(cfg, make_vec_env(cfg))
     policy = model.policy
     assert len(policy.critic.q_networks) == 5 and len(policy.critic_target.q_networks) == 5
@@ -137,7 +123,7 @@ def test_n_critics_feed_the_choice_and_the_td_target(reach_demos):
     with th.no_grad():  # an actor away from its clone, so the choice has something to choose
         for p in policy.actor.parameters():
             p.add_(0.3 * th.randn_like(p))
-    obs = _obs_batch(model, 64, seed=2)
+    obs = random_obs_batch(model, 64, seed=2)
     with th.no_grad():
         actor, clone = policy.actor(obs), policy.reference(obs)
         low_actor = th.cat(policy.critic(obs, actor), dim=1).min(dim=1).values
@@ -154,7 +140,7 @@ def test_n_critics_feed_the_choice_and_the_td_target(reach_demos):
 
 
 def test_a_saved_model_keeps_its_heads_and_its_actors_value(reach_demos, tmp_path):
-    cfg = fast(reach_demos, critics=3, actor_value="lowest")
+    cfg = fast_reach(reach_demos, critics=3, actor_value="lowest")
     model = make_agent(cfg, make_vec_env(cfg))
     model.save(tmp_path / "model.zip")
     loaded = TD3.load(
@@ -162,7 +148,7 @@ def test_a_saved_model_keeps_its_heads_and_its_actors_value(reach_demos, tmp_pat
         custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
     )
     assert isinstance(loaded.critic, LowestHeadCritic) and len(loaded.critic.q_networks) == 3
-    obs = _obs_batch(model, 8, seed=3)
+    obs = random_obs_batch(model, 8, seed=3)
     actions = th.zeros(8, model.action_space.shape[0])  # type: ignore[index]
     with th.no_grad():
         assert th.equal(loaded.critic.q1_forward(obs, actions), model.critic.q1_forward(obs, actions))
