@@ -326,6 +326,7 @@ LEARNER_ARMS = {
     "igate": "6",
     "margin": "8",
     "bound": "14-15, 18, 21, 23",
+    "clones": "27",
 }
 #: Learner arms on a task's new demonstrations (NEW_DEMOS), with their pre-registration.
 NEW_DEMO_ARMS = {"margin": "9", "radius": "10", "bound": "16"}
