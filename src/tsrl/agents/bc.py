@@ -32,6 +32,7 @@ from torch.nn import functional as F
 from ..envs.keys import OBS_KEYS
 from .action_penalty import actor_action
 from .demo_files import Demonstrations
+from .own_draws import own_draws
 
 FURTHER_CLONES_SEED = 104729
 """Added to the run's torch seed and a clone's index for the draws of a reference's clones beyond the
@@ -147,13 +148,8 @@ def pretrain_actor(model: OffPolicyAlgorithm, batches: DemoBatches, steps: int, 
     if members is not None:
         _clone_alone(model, members[0], batches, steps, batch_size)
         for index, member in enumerate(members[1:], start=1):  # from their own draws: the run's stay
-            numpy_state = np.random.get_state()
-            with th.random.fork_rng(devices=[]):
-                seed = th.initial_seed() + FURTHER_CLONES_SEED + index
-                th.manual_seed(seed)
-                np.random.seed(seed % 2**32)
+            with own_draws(FURTHER_CLONES_SEED + index):
                 _clone_alone(model, member, batches, steps, batch_size)
-            np.random.set_state(numpy_state)
         clone = members[0]  # the actor starts as the first clone
     elif reference is None:
         optimizer, act = clone.optimizer, partial(actor_action, model)

@@ -29,6 +29,8 @@ from stable_baselines3.common.policies import BasePolicy, ContinuousCritic
 from stable_baselines3.common.type_aliases import PyTorchObs
 from torch import nn
 
+from .own_draws import own_draws
+
 #: layer_norm values that normalise the critic / the actor (AgentConfig.layer_norm).
 NORMALISED_CRITIC = ("critic", "both")
 NORMALISED_ACTOR = ("both",)
@@ -119,8 +121,7 @@ class LayerNormTD3Policy(_LayerNormMixin, td3_policies.MultiInputPolicy):
             critic = super().make_critic(features_extractor)
             if heads > TWIN:  # the further heads from their own generator, seeded from the run's seed
                 self.critic_kwargs["n_critics"] = heads - TWIN
-                with th.random.fork_rng(devices=[]):
-                    th.manual_seed(th.initial_seed() + FURTHER_HEADS_SEED)
+                with own_draws(FURTHER_HEADS_SEED):
                     further = super().make_critic(features_extractor)
                 for q_net in further.q_networks:
                     critic.add_module(f"qf{len(critic.q_networks)}", q_net)

@@ -48,6 +48,7 @@ from torch import nn
 
 from .bc import FURTHER_CLONES_SEED, with_dropout
 from .learners import LayerNormTD3Policy
+from .own_draws import own_draws
 
 CHOICE = "choice"
 """The policy that acts by `choose` between actor and clone."""
@@ -264,8 +265,7 @@ class ReferenceTD3Policy(LayerNormTD3Policy):
         if self.clones > 1:  # the further clones from their own draws: every other network's stay
             members = [first]
             for index in range(1, self.clones):
-                with th.random.fork_rng(devices=[]):
-                    th.manual_seed(th.initial_seed() + FURTHER_CLONES_SEED + index)
+                with own_draws(FURTHER_CLONES_SEED + index):
                     members.append(self._make_clone())
             self.reference = CloneEnsemble(members)
         self.reference.requires_grad_(False)
