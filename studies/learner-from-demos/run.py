@@ -98,7 +98,8 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 #: The arms this commit runs (the others name the commits that ran them).
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
-    "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10"
+    "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10, "
+    "frontier100, frontier10"
 )
 
 
@@ -136,17 +137,22 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(("margin", "radius", "bound", "adapt", "reset", "distill", "propose", "ens", "clones")):
+    if arm.startswith(
+        ("margin", "radius", "bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier")
+    ):
         # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(("bound", "adapt", "reset", "distill", "propose", "ens", "clones")):
+        if arm.startswith(("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier")):
             # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("reset"):
             # bound's, half of the training episodes started from a demonstration's state
             demo_cfg = dataclasses.replace(demo_cfg, reset_prob=0.5)
+        if arm.startswith("frontier"):
+            # bound's, with RFCL's reverse curriculum: half of the training episodes from a frontier
+            demo_cfg = dataclasses.replace(demo_cfg, reset_prob=0.5, reset_frontier_k=3)
         if arm.startswith("distill"):
             # bound's, with the choice between actor and clone cloned into the actor
             options["distill_choice"] = 1.0
