@@ -347,6 +347,23 @@ def test_training_with_demonstration_resets_starts_episodes_from_demonstrations(
     assert not isinstance(without.venv.envs[0].env, DemoResets)
 
 
+def test_the_run_name_says_where_episodes_start(reach_demos):
+    def name(**resets) -> str:
+        return tiny(demos=DemoConfig(path=str(reach_demos), **resets)).run_name
+
+    assert name().endswith("__s0__demos")  # no resets: the name as before
+    assert name(reset_prob=0.0) == name()
+    assert name(reset_prob=0.5).endswith("__s0__demos__demo-resets-0.5")
+    assert name(reset_prob=0.5, reset_frontier_k=3).endswith("__demo-resets-0.5__frontier-3")
+    assert name(reset_prob=1.0, reset_curriculum_steps=1000).endswith(
+        "__demo-resets-1__curriculum-steps-1000"
+    )
+    assert name(reset_prob=1.0, reset_curriculum_success=0.75).endswith(
+        "__demo-resets-1__curriculum-success-0.75"
+    )
+    assert len({name(), name(reset_prob=0.5), name(reset_prob=0.5, reset_frontier_k=3)}) == 3
+
+
 # -- TQC + feature HER -------------------------------------------------------------------------
 def test_tqc_with_feature_her_relabels_exactly():
     cfg = tiny(algo="tqc")

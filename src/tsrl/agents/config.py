@@ -248,6 +248,21 @@ class DemoConfig:
         share = self.batch_share
         return self.path is not None and (share is None or share > 0) and self.bc_weight > 0
 
+    @property
+    def resets_suffix(self) -> str:
+        """The run name's part for resets to demonstration states (TrainConfig.run_name): "" without
+        them, else `__demo-resets-<prob>` and the reverse curriculum's `__frontier-<k>`,
+        `__curriculum-steps-<N>` or `__curriculum-success-<s>`."""
+        if not (self.active and self.reset_prob):
+            return ""
+        suffix = f"__demo-resets-{self.reset_prob:g}"
+        suffix += f"__frontier-{self.reset_frontier_k}" if self.reset_frontier_k else ""
+        suffix += f"__curriculum-steps-{self.reset_curriculum_steps}" if self.reset_curriculum_steps else ""
+        suffix += (
+            f"__curriculum-success-{self.reset_curriculum_success:g}" if self.reset_curriculum_success else ""
+        )
+        return suffix
+
 
 @dataclass(frozen=True)
 class AgentConfig:
@@ -716,7 +731,9 @@ class TrainConfig:
         A spec string in place of a preset becomes `spec-<hash>` (its text is in config.json); runs
         with stable-baselines3's plain HER get a `__her-plain` suffix, runs with demonstrations on
         (DemoConfig.active) `__demos`, runs started from another run's networks (init_from) `__init`,
-        runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs with an action
+        runs of another learner preset than paper `__<learner>` (e.g. `__fast`), runs that start episodes
+        from demonstration states `__demo-resets-<prob>` (with a reverse curriculum `__frontier-<k>`,
+        `__curriculum-steps-<N>` or `__curriculum-success-<s>`), runs with an action
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
         `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
         choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
@@ -728,6 +745,7 @@ class TrainConfig:
         suffix += "__demos" if self.agent.demos.active else ""
         suffix += "__init" if self.init_from is not None else ""
         suffix += "" if self.agent.learner == "paper" else f"__{self.agent.learner}"
+        suffix += self.agent.demos.resets_suffix
         suffix += f"__action-l2-{self.agent.action_l2:g}" if self.agent.action_l2 else ""
         suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
         suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
