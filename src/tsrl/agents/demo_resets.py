@@ -37,6 +37,12 @@ from ..envs.keys import OBS_KEYS
 from .demo_files import DemoFileError, Demonstrations
 
 
+def first_successes(demos: Demonstrations) -> np.ndarray:
+    """(N,) each demonstration's first successful state: the index, in replay_states' (N, T + 1)
+    states, after the first step whose is_success is set (the reverse curriculum's first frontier)."""
+    return np.argmax(demos.is_success, axis=1) + 1
+
+
 def restore_state(base: TaskEnv, state: np.ndarray) -> dict[str, np.ndarray]:
     """Writes `state` (from TaskEnv.get_state) into the task env `base` and returns its observation."""
     return base.restore_state(state)

@@ -96,7 +96,7 @@ def _training_env(cfg: TrainConfig) -> gym.Env:
     if not demos.reset_prob:
         return env
     from .demo_files import DemoSpec, load_demos
-    from .demo_resets import DemoResets, replay_states
+    from .demo_resets import DemoResets, first_successes, replay_states
 
     assert demos.path is not None  # AgentConfig: resets need demonstrations
     replay = make_env(cfg)
@@ -105,9 +105,7 @@ def _training_env(cfg: TrainConfig) -> gym.Env:
         states = replay_states(replay, loaded, demos.path)
     finally:
         replay.close()
-    first_success = None
-    if demos.reset_frontier_k:  # each demonstration's first successful state (is_success is after a step)
-        first_success = np.argmax(loaded.is_success, axis=1) + 1
+    first_success = first_successes(loaded) if demos.reset_frontier_k else None
     return DemoResets(
         env,
         states,
