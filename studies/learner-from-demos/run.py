@@ -4,6 +4,7 @@ data/runs.csv; `table` prints the study's table from that file.
 
     python studies/learner-from-demos/run.py train ARM TASK --seeds 0 1 2 3 4 [--out DIR]
     python studies/learner-from-demos/run.py table      # the runs' table and the pre-registered verdicts
+    python studies/learner-from-demos/run.py summary    # the issue's benchmark table (docs/results.md)
 
 Arms: bc100 / bc10: behaviour cloning of the first 100 / 10 scripted demonstrations (recording
 seed 0), 8,000 gradient steps; margin100 / margin10: `--learner fast` with the same demonstrations
@@ -371,6 +372,55 @@ def _verdict(
         )
 
 
+#: The preset's arm per task in the summary: `--learner fast` since pre-registration 17 (the suction's
+#: on its new demonstrations, NEW_DEMOS).
+PRESET_ARM = "bound"
+SUMMARY_BEGIN = (
+    "<!-- learner-from-demos summary: `python studies/learner-from-demos/run.py summary`; do not edit -->"
+)
+SUMMARY_END = "<!-- learner-from-demos summary: end -->"
+
+
+#: The summary's rows beyond TARGETS: the 10-demonstration arms the issue asks reported beside BC's.
+REPORTED_WITHOUT_TARGET = (("PandaPush-v0", 10), ("PandaStack-v0", 10), ("PandaPegInsert-v0", 10))
+
+
+def summary(rows: list[dict[str, str]] | None = None) -> list[str]:
+    """The issue's benchmark table (docs/results.md), one line per task and number of demonstrations:
+    BC's finals, the preset's finals per seed, its seeds at 95 % within the target, the floor rule."""
+    rows = read_rows() if rows is None else rows
+    lines = [
+        (
+            "| task | demos | BC: final (5 seeds) | `--learner fast`: final per seed | seeds | at 95 % (sustained) "
+            "within the target | floor held: lowest evaluation after 2,500 (line) |"
+        ),
+        "| --- | ---: | --- | --- | ---: | --- | --- |",
+    ]
+    reported: list[tuple[tuple[str, int], int | None]] = [*TARGETS.items()]
+    reported += [(key, None) for key in REPORTED_WITHOUT_TARGET]
+    for (task, n), target in reported:
+        suffix = NEW_DEMOS.get(task, "")
+        bc = sorted(float(r["final"]) for r in rows if (r["task"], r["arm"]) == (task, f"bc{n}{suffix}"))
+        fast = sorted(
+            (r for r in rows if (r["task"], r["arm"]) == (task, f"{PRESET_ARM}{n}{suffix}")),
+            key=lambda r: int(r["seed"]),
+        )
+        bc_cell = f"{bc[0]:.2f}-{bc[-1]:.2f}" if bc else "-"
+        if not fast:
+            lines.append(f"| {task} | {n} | {bc_cell} | not run | 0 of 5 | - | - |")
+            continue
+        within = sum(r["to95"] not in ("", "nan") and float(r["to95"]) <= (target or 0) for r in fast)
+        reached = f"{within} of {len(fast)} within {target:,}" if target else "no target"
+        lowest = min(float(r["min_after"]) for r in fast)
+        line = float(np.mean(bc)) - 0.05
+        held = "yes" if lowest >= line else "no"
+        lines.append(
+            f"| {task} | {n} | {bc_cell} | {_per(fast, 'final')} | {len(fast)} of 5 | {reached} | "
+            f"{held}: {lowest:.2f} ({line:.3f}) |"
+        )
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -381,9 +431,12 @@ def main() -> None:
     t.add_argument("--out", type=Path, default=Path("results/learner-from-demos"))
     t.add_argument("--probe", action="store_true", help="write the row to data/probes.csv (not a screen)")
     sub.add_parser("table")
+    sub.add_parser("summary", help="the issue's benchmark table of docs/results.md")
     args = parser.parse_args()
     if args.command == "train":
         train_arm(args.arm, args.task, args.seeds, args.out, args.probe)
+    elif args.command == "summary":
+        print("\n".join(summary()))
     else:
         table()
         print()
