@@ -1,8 +1,8 @@
 """Probes' curves side by side: per progress.csv (a run's, or one kept in data/probe-curves), the mean
-evaluation success over 40,000-80,000 env steps and over 80,000 to the last evaluation every file
-has, the lowest evaluation after 2,500, and the env steps reached.
+evaluation success over 40,000-80,000 env steps (or `--edges A B`: A-B) and over 80,000 (B) to the
+last evaluation every file has, the lowest evaluation after 2,500, and the env steps reached.
 
-    python studies/learner-from-demos/probe_windows.py CURVE.csv [CURVE.csv ...]
+    python studies/learner-from-demos/probe_windows.py CURVE.csv [CURVE.csv ...] [--edges A B]
 
 Descriptive: the windows are those pre-registrations 19 and 20 read; a probe, not a screen.
 """
@@ -38,10 +38,11 @@ def window_mean(steps: np.ndarray, success: np.ndarray, start: float, end: float
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("curves", type=Path, nargs="+")
+    parser.add_argument("--edges", type=int, nargs=2, default=WINDOWS, metavar=("A", "B"))
     args = parser.parse_args()
     curves = {path: curve(path) for path in args.curves}
     common = min(float(steps[-1]) for steps, _ in curves.values())
-    first, second = WINDOWS
+    first, second = args.edges
     print(
         f"| curve | env steps reached | {first:,}-{second:,} | {second:,}-{common:,.0f} | lowest after {FLOOR_AFTER:,} |"
     )
