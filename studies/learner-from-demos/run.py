@@ -100,7 +100,7 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
     "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10, "
-    "frontier100, frontier10"
+    "frontier100, frontier10, nstep100, nstep10"
 )
 
 
@@ -139,13 +139,27 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
     if arm.startswith(
-        ("margin", "radius", "bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier")
+        (
+            "margin",
+            "radius",
+            "bound",
+            "adapt",
+            "reset",
+            "distill",
+            "propose",
+            "ens",
+            "clones",
+            "frontier",
+            "nstep",
+        )
     ):
         # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier")):
+        if arm.startswith(
+            ("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier", "nstep")
+        ):
             # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("reset"):
@@ -161,6 +175,8 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             options["clone_proposals"] = 4
         if arm.startswith("clones"):  # bound's, the reference the mean action of 5 clones
             options["clones"] = 5
+        if arm.startswith("nstep"):  # bound's, with 3-step targets for the critic
+            options["n_step"] = 3
         if arm.startswith("ens"):  # bound's, with a pessimistic ensemble of 5 critic heads
             options |= {"critics": 5, "actor_value": "lowest"}
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable

@@ -375,6 +375,12 @@ class AgentConfig:
     them (TD3's clipped double Q over N; IBRL's critic ensemble, Hu et al. 2023); the heads beyond two
     are drawn from their own generator, so the other networks start as without them. 2 (default):
     TD3's twin critics."""
+    n_step: int = 1
+    """N > 1: the critic's target is an N-step return: the rewards of each row's next N steps under its
+    (relabelled) goal, then gamma^N times the target critic's value N steps on (fewer where the episode
+    ends first; tsrl.agents.her). Faster credit for sparse rewards (DDPGfD, Vecerik et al. 2017; FastTD3,
+    Seo et al. 2025); the steps' actions are the stored ones. ddpg, td3, sac or tqc under feature HER with
+    gamma < 1. 1 (default): one-step targets."""
     actor_value: ActorValue = "first"
     """The critic value TD3's actor climbs: its first head (first, default: TD3's) or the lowest of its
     heads (lowest: IBRL's, so the actor does not climb one head's over-estimates; with demonstrations
@@ -447,6 +453,7 @@ class AgentConfig:
             )
         self._check_critics()
         self._check_clones()
+        self._check_n_step()
         if self.algo == BC:
             self._check_bc()
 
@@ -499,6 +506,16 @@ class AgentConfig:
                 f"{name} {value!r} {what}: it needs --learner fast, algo td3 or ddpg and demonstrations (got "
                 f"learner {self.learner!r}, algo {self.algo!r}, demos {self.demos.path!r}); accepted without "
                 "them: 0"
+            )
+
+    def _check_n_step(self) -> None:
+        check_int("n_step", self.n_step, 1)
+        fits = self.algo in ("ddpg", "td3", "sac", "tqc") and self.her.relabel == "feature"
+        if self.n_step > 1 and not (fits and is_number(self.gamma) and self.gamma < 1):
+            raise InvalidConfig(
+                f"n_step {self.n_step!r} makes the critic's target an N-step return of ddpg, td3, sac or tqc "
+                f"under feature HER with gamma < 1 (got algo {self.algo!r}, her relabel {self.her.relabel!r}, "
+                f"gamma {self.gamma!r}); accepted with these: 1"
             )
 
     def _check_return_bound(self) -> None:
@@ -738,7 +755,7 @@ class TrainConfig:
         `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
         choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
         `__clone-proposals-<K>`, runs whose reference averages C clones `__clones-<C>`, runs with N critics
-        other than 2 `__critics-<N>`, runs whose actor climbs
+        other than 2 `__critics-<N>`, runs with N-step targets `__n-step-<N>`, runs whose actor climbs
         the lowest head `__actor-lowest`.
         """
         suffix = "" if self.agent.her.relabel == "feature" else f"__her-{self.agent.her.relabel}"
@@ -754,6 +771,7 @@ class TrainConfig:
         suffix += f"__clone-proposals-{self.agent.clone_proposals}" if self.agent.clone_proposals else ""
         suffix += f"__clones-{self.agent.clones}" if self.agent.clones != 1 else ""
         suffix += f"__critics-{self.agent.critics}" if self.agent.critics != 2 else ""
+        suffix += f"__n-step-{self.agent.n_step}" if self.agent.n_step != 1 else ""
         suffix += f"__actor-{self.agent.actor_value}" if self.agent.actor_value != "first" else ""
         return f"{self.env_name}__{self.agent.algo}__s{self.seed}{suffix}"
 

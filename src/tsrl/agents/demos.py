@@ -95,6 +95,8 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
             n_sampled_goal=self.n_sampled_goal,
             goal_selection_strategy=self.goal_selection_strategy.name.lower(),
             relabel_features=self.relabel_features,
+            n_step=self.n_step,
+            n_step_gamma=self.n_step_gamma,
         )
         if self.return_gamma is not None:
             buffer.track_returns(self.return_gamma)
@@ -140,6 +142,9 @@ class DemoReplayBuffer(FeatureHerReplayBuffer):
             },
             dones=th.cat((replay.dones, demo.dones)),
             rewards=th.cat((replay.rewards, demo.rewards)),
+            discounts=None
+            if replay.discounts is None or demo.discounts is None
+            else th.cat((replay.discounts, demo.discounts)),
         )
         return self.last_batch
 

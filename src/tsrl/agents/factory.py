@@ -166,6 +166,8 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
     }
     if a.algo == BC:
         return _make_cloner(cfg, env, kwargs)
+    if a.n_step > 1:  # N-step targets (agents/her.py); default left out: saved kwargs as before
+        kwargs["replay_buffer_kwargs"] |= {"n_step": a.n_step, "n_step_gamma": a.gamma}
     own_critics = a.actor_value != "first" or a.critics != 2  # TD3's policy of tsrl.agents.learners
     policy = ReferenceTD3Policy if a.has_reference else policy_for(a.algo, a.layer_norm, own_critics)  # type: ignore[arg-type]
     if a.layer_norm != "none" or a.has_reference or own_critics:

@@ -10,6 +10,12 @@ works on the raw stored values; normalisation (VecNormalize) is applied afterwar
 Where `track_returns(gamma)` is on (tsrl.agents.return_bound), `sample` also gives each row's
 discounted return from its step to its episode's end under the row's own (relabelled) goal.
 
+With `n_step` N > 1 (AgentConfig.n_step), each row is an N-step transition for the critic's target:
+the discounted sum of the rewards of its next k = min(N, steps left in its episode) steps under the
+row's goal, the (relabelled) observation k steps on, the termination of the k-th step, and
+`discounts` gamma^k, which stable-baselines3's DDPG, TD3, SAC and TQC use in place of gamma (their
+NStepReplayBuffer's field). Episodes cut by the time limit bootstrap from their last state.
+
 The buffer also pickles compactly (only the filled part of its arrays), so checkpoints of a short
 run stay small, and can grow when a resumed run gets a larger budget.
 
@@ -49,6 +55,10 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
     return_gamma: float | None = None
     """The discount of `last_returns`; None (default): no returns are computed."""
     last_returns: th.Tensor | None = None
+    n_step: int = 1
+    """Steps of the critic's target per row (module docstring); 1: one-step transitions."""
+    n_step_gamma: float | None = None
+    """The discount of the N-step rewards and of `discounts` (the algorithm's gamma)."""
 
     def __init__(
         self,
@@ -64,6 +74,8 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         goal_selection_strategy: str = "future",
         copy_info_dict: bool = False,
         relabel_features: bool = True,
+        n_step: int = 1,
+        n_step_gamma: float | None = None,
     ):
         super().__init__(
             buffer_size,
@@ -79,6 +91,9 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
             copy_info_dict=copy_info_dict,
         )
         self.relabel_features = relabel_features
+        if n_step > 1:  # AgentConfig checks these; a buffer built otherwise is a programming error
+            assert relabel_features and n_step_gamma is not None and 0 < n_step_gamma < 1
+            self.n_step, self.n_step_gamma = n_step, n_step_gamma
         if relabel_features and env is not None and not _has_relabel(env):
             raise InvalidConfig(
                 "feature-aware HER needs an environment with relabel(obs, new_goal) (tsrl's environments "
@@ -96,8 +111,8 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         env_indices: np.ndarray,
         env: VecNormalize | None = None,
     ) -> DictReplayBufferSamples:
-        """HerReplayBuffer's, noting the rows' stored goals for `last_returns`."""
-        if self.return_gamma is not None:
+        """HerReplayBuffer's, noting the rows' stored goals for `last_returns` and N-step rows."""
+        if self._notes_goals:
             goals = self.observations["desired_goal"][batch_indices, env_indices]
             self._sampled_goals.append((batch_indices, env_indices, goals))
         return super()._get_real_samples(batch_indices, env_indices, env)
@@ -118,7 +133,7 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         else:
             infos = [{} for _ in range(len(batch_indices))]
         new_goals = self._sample_goals(batch_indices, env_indices)
-        if self.return_gamma is not None:
+        if self._notes_goals:
             self._sampled_goals.append((batch_indices, env_indices, new_goals))
 
         # One vectorised call for observations and next observations: same goal for both.
@@ -149,12 +164,58 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> DictReplayBufferSamples:  # type: ignore[override]
         """HerReplayBuffer's sample, kept as `last_batch` (and its rows' returns as `last_returns`)."""
         self._sampled_goals: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self.last_batch: DictReplayBufferSamples | None = super().sample(batch_size, env)
+        batch = super().sample(batch_size, env)
+        if self.n_step > 1:
+            batch = self._n_step_rows(batch, env)
+        self.last_batch: DictReplayBufferSamples | None = batch
         self.last_returns = None
         if self.return_gamma is not None:  # rows in the order sampled: real, then relabelled
             returns = [self.returns_to_go(*rows, self.return_gamma) for rows in self._sampled_goals]
             self.last_returns = self.to_torch(np.concatenate(returns).astype(np.float32).reshape(-1, 1))
         return self.last_batch
+
+    @property
+    def _notes_goals(self) -> bool:
+        """Whether sampling notes each row's goal (`_sampled_goals`: real rows, then relabelled)."""
+        return self.return_gamma is not None or self.n_step > 1
+
+    def _n_step_rows(
+        self, batch: DictReplayBufferSamples, env: VecNormalize | None
+    ) -> DictReplayBufferSamples:
+        """`batch` (one-step rows, real then relabelled, as `_sampled_goals` notes them) as N-step rows
+        (module docstring): its observations and actions, the next observation, reward and done k
+        steps on, and `discounts` gamma^k (n, 1)."""
+        assert self.n_step_gamma is not None and self.env is not None
+        b, e, goals = (np.concatenate(parts) for parts in zip(*self._sampled_goals, strict=True))
+        n_real = len(self._sampled_goals[0][0])
+        start, length = self.ep_start[b, e], self.ep_length[b, e]
+        k = np.minimum(self.n_step, length - (b - start) % self.buffer_size)  # 1 <= k <= steps left
+        offsets = np.arange(self.n_step)
+        row, col = np.nonzero(offsets[None, :] < k[:, None])
+        later = (b[row] + offsets[col]) % self.buffer_size
+        rewards = np.zeros((len(b), self.n_step), dtype=np.float32)
+        rewards[row, col] = self.env.env_method(
+            "compute_reward",
+            self.next_observations["achieved_goal"][later, e[row]],
+            goals[row],
+            None,
+            indices=[0],
+        )[0]
+        rewards = self._normalize_reward(rewards, env) @ self.n_step_gamma**offsets
+        last = (b + k - 1) % self.buffer_size  # the row whose next observation is k steps on
+        next_obs = {key: value[last, e] for key, value in self.next_observations.items()}
+        relabelled = self.relabel({key: value[n_real:] for key, value in next_obs.items()}, goals[n_real:])
+        next_obs = {key: np.concatenate([next_obs[key][:n_real], relabelled[key]]) for key in next_obs}
+        dones = self.dones[last, e] * (1 - self.timeouts[last, e])
+        next_obs = self._normalize_obs(next_obs, env)  # type: ignore[assignment]
+        return DictReplayBufferSamples(
+            observations=batch.observations,
+            actions=batch.actions,
+            next_observations={key: self.to_torch(value) for key, value in next_obs.items()},
+            dones=self.to_torch(dones.astype(np.float32)).reshape(-1, 1),
+            rewards=self.to_torch(rewards.astype(np.float32).reshape(-1, 1)),
+            discounts=self.to_torch((self.n_step_gamma**k).astype(np.float32).reshape(-1, 1)),
+        )
 
     def track_returns(self, gamma: float) -> None:
         """From now on `sample` also sets `last_returns` with discount `gamma` in (0, 1)."""
