@@ -6,6 +6,7 @@ line (exit 2)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import gymnasium as gym
@@ -153,3 +154,18 @@ def test_a_tensor_batch_is_float32():
     batch = buffer.sample(32)
     for tensor in (batch.rewards, batch.dones, batch.discounts):
         assert tensor is not None and tensor.dtype == th.float32
+
+
+def test_a_saved_buffer_keeps_its_n_step(tmp_path: Path):
+    cfg = TrainConfig(env_id=REACH, obs="fs1", total_timesteps=300, agent=AgentConfig(algo="td3", n_step=4))
+    model = make_agent(cfg, make_vec_env(cfg))
+    model.learn(100)
+    model.save_replay_buffer(tmp_path / "buffer.pkl")
+    again = make_agent(dataclasses.replace(cfg, agent=AgentConfig(algo="td3")), make_vec_env(cfg))
+    again.load_replay_buffer(tmp_path / "buffer.pkl")
+    buffer = again.replay_buffer
+    assert (
+        isinstance(buffer, FeatureHerReplayBuffer)
+        and buffer.n_step == 4
+        and buffer.n_step_gamma == cfg.agent.gamma
+    )
