@@ -20,7 +20,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from learning import PICK, matmul_floor, record_benchmark_demos  # type: ignore[import-not-found]
+from learning import matmul_floor  # type: ignore[import-not-found]
+from speed_profile import fast_preset_model  # type: ignore[import-not-found]
 
 
 def updates_per_second(model: Any, updates: int, batch_size: int) -> float:
@@ -51,27 +52,16 @@ def main() -> None:
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/learning"))
     args = parser.parse_args()
 
-    import torch as th
-
-    from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
-    from tsrl.agents.config import DemoConfig
-
-    th.set_num_threads(1)
-    fill = 1000
-    agent = AgentConfig(
-        learning_starts=fill, learner="fast", demos=DemoConfig(path=str(record_benchmark_demos(args.out_dir)))
-    )
-    cfg = TrainConfig(env_id=PICK, obs="fs1", seed=0, total_timesteps=fill + 1000, agent=agent)
-    model = make_agent(cfg, make_vec_env(cfg))
-    model.learn(fill)  # random actions fill the buffer; no update yet
-    model.train(gradient_steps=args.updates // 2, batch_size=agent.batch_size)  # untimed
-    floor = matmul_floor(model, agent.batch_size, args.updates)
-    plain = [updates_per_second(model, args.updates, agent.batch_size) for _ in range(args.rounds)]
+    model = fast_preset_model(args.out_dir)
+    batch_size = model.batch_size
+    model.train(gradient_steps=args.updates // 2, batch_size=batch_size)  # untimed
+    floor = matmul_floor(model, batch_size, args.updates)
+    plain = [updates_per_second(model, args.updates, batch_size) for _ in range(args.rounds)]
     compile_networks(model, args.mode)
     t0 = time.perf_counter()
-    model.train(gradient_steps=args.updates // 2, batch_size=agent.batch_size)  # compiles; untimed
+    model.train(gradient_steps=args.updates // 2, batch_size=batch_size)  # compiles; untimed
     print(f"compiling and {args.updates // 2} steps: {time.perf_counter() - t0:.0f} s")
-    compiled = [updates_per_second(model, args.updates, agent.batch_size) for _ in range(args.rounds)]
+    compiled = [updates_per_second(model, args.updates, batch_size) for _ in range(args.rounds)]
     print(f"floor: {floor:.1f} updates/s (the step's matrix products alone)\n")
     print("| round | plain [updates/s] | compiled [updates/s] |\n| --- | ---: | ---: |")
     for index, (p, c) in enumerate(zip(plain, compiled, strict=True)):

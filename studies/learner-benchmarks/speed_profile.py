@@ -19,6 +19,7 @@ import argparse
 import statistics
 import time
 from pathlib import Path
+from typing import Any
 
 from learning import PICK, matmul_floor, record_benchmark_demos  # type: ignore[import-not-found]
 
@@ -49,13 +50,9 @@ def profile_round(model: object, batch_size: int, updates: int) -> dict[str, flo
     return row
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--updates", type=int, default=200)
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/learning"))
-    args = parser.parse_args()
-
+def fast_preset_model(out_dir: Path) -> Any:
+    """The speed table's "fast preset (UTD 2)" model (module docstring) on one torch thread, its
+    buffer filled with 1,000 random-action transitions and no update made yet."""
     import torch as th
 
     from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env
@@ -64,13 +61,24 @@ def main() -> None:
     th.set_num_threads(1)
     fill = 1000
     agent = AgentConfig(
-        learning_starts=fill, learner="fast", demos=DemoConfig(path=str(record_benchmark_demos(args.out_dir)))
+        learning_starts=fill, learner="fast", demos=DemoConfig(path=str(record_benchmark_demos(out_dir)))
     )
     cfg = TrainConfig(env_id=PICK, obs="fs1", seed=0, total_timesteps=fill + 1000, agent=agent)
     model = make_agent(cfg, make_vec_env(cfg))
     model.learn(fill)  # random actions fill the buffer; no update yet
-    model.train(gradient_steps=args.updates, batch_size=agent.batch_size)  # untimed
-    rounds = [profile_round(model, agent.batch_size, args.updates) for _ in range(args.rounds)]
+    return model
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--updates", type=int, default=200)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/learning"))
+    args = parser.parse_args()
+
+    model = fast_preset_model(args.out_dir)
+    model.train(gradient_steps=args.updates, batch_size=model.batch_size)  # untimed
+    rounds = [profile_round(model, model.batch_size, args.updates) for _ in range(args.rounds)]
     keys = ("step", "floor", *GROUPS, "optimizer", "rest")
     print("| round | " + " | ".join(f"{k} [ms/update]" for k in keys) + " | step of floor |")
     print("| --- |" + " ---: |" * (len(keys) + 1))

@@ -104,6 +104,10 @@ ACCEPTED_ARMS = (
 )
 
 
+#: The learner arms built on `bound` (the preset with the return bound), each adding one option.
+BOUND_ARMS = ("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier", "nstep")
+
+
 def budget(task: str, n: int) -> int:
     """Env steps of a learner arm with `n` demonstrations: BUDGETS, but the gripper pick-and-place with
     10 demonstrations has its target's 60,000."""
@@ -138,28 +142,12 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             env_id=f"tsrl/{task}", seed=seed, eval_freq=2_000, eval_episodes=EVAL_EPISODES,
             checkpoint_freq=4_000, agent=agent,
         )  # fmt: skip
-    if arm.startswith(
-        (
-            "margin",
-            "radius",
-            "bound",
-            "adapt",
-            "reset",
-            "distill",
-            "propose",
-            "ens",
-            "clones",
-            "frontier",
-            "nstep",
-        )
-    ):
+    if arm.startswith(("margin", "radius", *BOUND_ARMS)):
         # radius: the reward at the task's tolerances; margin and radius: the preset of pre-registration 8, before the return bound joined it
         options: dict[str, Any] = {"return_bound": 0.0}
         if arm.startswith("radius"):
             options["reward_scale"] = 1.0
-        if arm.startswith(
-            ("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier", "nstep")
-        ):
+        if arm.startswith(BOUND_ARMS):
             # margin's, with the returns as the critic's lower bound
             options = {"return_bound": 1.0}
         if arm.startswith("reset"):

@@ -185,23 +185,12 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         """`batch` (one-step rows, real then relabelled, as `_sampled_goals` notes them) as N-step rows
         (module docstring): its observations and actions, the next observation, reward and done k
         steps on, and `discounts` gamma^k (n, 1)."""
-        assert self.n_step_gamma is not None and self.env is not None
+        assert self.n_step_gamma is not None
         b, e, goals = (np.concatenate(parts) for parts in zip(*self._sampled_goals, strict=True))
         n_real = len(self._sampled_goals[0][0])
-        start, length = self.ep_start[b, e], self.ep_length[b, e]
-        k = np.minimum(self.n_step, length - (b - start) % self.buffer_size)  # 1 <= k <= steps left
-        offsets = np.arange(self.n_step)
-        row, col = np.nonzero(offsets[None, :] < k[:, None])
-        later = (b[row] + offsets[col]) % self.buffer_size
-        rewards = np.zeros((len(b), self.n_step), dtype=np.float32)
-        rewards[row, col] = self.env.env_method(
-            "compute_reward",
-            self.next_observations["achieved_goal"][later, e[row]],
-            goals[row],
-            None,
-            indices=[0],
-        )[0]
-        rewards = self._normalize_reward(rewards, env) @ self.n_step_gamma**offsets
+        k = np.minimum(self.n_step, self._steps_left(b, e))
+        rewards = self._normalize_reward(self._later_rewards(b, e, goals, k), env)
+        rewards = rewards @ self.n_step_gamma ** np.arange(rewards.shape[1])
         last = (b + k - 1) % self.buffer_size  # the row whose next observation is k steps on
         next_obs = {key: value[last, e] for key, value in self.next_observations.items()}
         relabelled = self.relabel({key: value[n_real:] for key, value in next_obs.items()}, goals[n_real:])
@@ -235,18 +224,30 @@ class FeatureHerReplayBuffer(HerReplayBuffer):
         n = len(batch_indices)
         if n == 0:
             return np.zeros(0)
+        remaining = self._steps_left(batch_indices, env_indices)  # T - t >= 1
+        rewards = self._later_rewards(batch_indices, env_indices, goals, remaining)
+        last = rewards[np.arange(n), remaining - 1]
+        return rewards @ gamma ** np.arange(rewards.shape[1]) + gamma**remaining * last / (1 - gamma)
+
+    def _steps_left(self, batch_indices: np.ndarray, env_indices: np.ndarray) -> np.ndarray:
+        """(n,) steps from each stored row's step t to its episode's end, T - t >= 1."""
         start = self.ep_start[batch_indices, env_indices]
-        length = self.ep_length[batch_indices, env_indices]
-        remaining = length - (batch_indices - start) % self.buffer_size  # T - t >= 1
-        offsets = np.arange(int(remaining.max()))
-        row, col = np.nonzero(offsets[None, :] < remaining[:, None])
+        return self.ep_length[batch_indices, env_indices] - (batch_indices - start) % self.buffer_size
+
+    def _later_rewards(
+        self, batch_indices: np.ndarray, env_indices: np.ndarray, goals: np.ndarray, steps: np.ndarray
+    ) -> np.ndarray:
+        """(n, max(steps)) float64: row i's rewards r_t .. r_{t + steps_i - 1} (`compute_reward` of each
+        later next achieved goal and the row's goal, goals (n, g)), 0 beyond; steps (n,) within the
+        episode."""
+        offsets = np.arange(int(steps.max()))
+        row, col = np.nonzero(offsets[None, :] < steps[:, None])
         later = (batch_indices[row] + offsets[col]) % self.buffer_size
         achieved = self.next_observations["achieved_goal"][later, env_indices[row]]
         assert self.env is not None
-        rewards = np.zeros((n, len(offsets)))
+        rewards = np.zeros((len(batch_indices), len(offsets)))
         rewards[row, col] = self.env.env_method("compute_reward", achieved, goals[row], None, indices=[0])[0]
-        last = rewards[np.arange(n), remaining - 1]
-        return rewards @ gamma**offsets + gamma**remaining * last / (1 - gamma)
+        return rewards
 
     # -- compact pickling and growth ------------------------------------------------------------
     @property
