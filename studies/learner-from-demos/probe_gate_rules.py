@@ -1,0 +1,166 @@
+"""Pre-registration 34: the fast learner's evaluations under stricter acting gates, read offline from
+runs already made (README.md beside this file).
+
+The gate (tsrl.agents.acting_gate) decides only which policy acts deterministically; training is the
+same under any rule, and the frozen clone evaluates to one number on a run's fixed seeds (its
+evaluation at 0 env steps). So for a rule that lets the choice act only where today's does, each
+evaluation is the logged one where both let the choice act and the clone's number elsewhere.
+
+    python studies/learner-from-demos/probe_gate_rules.py RUN [RUN ...]
+
+Per run: the clone's number, the task's floor line, and per rule the lowest evaluation after 2,500 env
+steps, the final (mean of the last three evaluations) and the env steps to 95 % (sustained); and the
+check that today's rule, reconstructed from the logged windows, keeps the clone exactly where the
+logged evaluation is the clone's number.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from probe_gate import gate_scalars
+from run import NEW_DEMOS, TARGETS, demo_count, read_rows
+from scipy import stats
+
+from tsrl.agents.acting_gate import MIN_EPISODES, WINDOW
+from tsrl.agents.training import read_progress
+from tsrl.experiments.curves import FINAL_EVALS, sustained_crossing
+
+Window = tuple[float, int]
+"""A measured window: (success share, episodes)."""
+
+
+def today(choice: Window, clone: Window) -> bool:
+    """The gate as built: both windows at least MIN_EPISODES, the choice's share strictly above."""
+    return min(choice[1], clone[1]) >= MIN_EPISODES and choice[0] > clone[0]
+
+
+def z_rule(choice: Window, clone: Window) -> bool:
+    """One-sided pooled two-proportion z of the choice's window over the clone's at least 1.645."""
+    (p1, n1), (p2, n2) = choice, clone
+    pooled = (p1 * n1 + p2 * n2) / (n1 + n2)
+    if not today(choice, clone) or pooled in (0.0, 1.0):
+        return False
+    return (p1 - p2) / math.sqrt(pooled * (1 - pooled) * (1 / n1 + 1 / n2)) >= 1.645
+
+
+def full_rule(choice: Window, clone: Window) -> bool:
+    """Today's comparison on full windows only."""
+    return choice[1] == clone[1] == WINDOW and today(choice, clone)
+
+
+def bayes_rule(choice: Window, clone: Window) -> bool:
+    """P(choice's success > clone's) >= 0.95 under uniform priors (numerical, on a grid)."""
+    if not today(choice, clone):
+        return False
+    grid = np.linspace(0, 1, 2001)
+    (p1, n1), (p2, n2) = choice, clone
+    s1, s2 = round(p1 * n1), round(p2 * n2)
+    density = stats.beta.pdf(grid, 1 + s1, 1 + n1 - s1)
+    below = stats.beta.cdf(grid, 1 + s2, 1 + n2 - s2)  # P(clone's < x)
+    return float(np.trapezoid(density * below, grid)) >= 0.95
+
+
+RULES: dict[str, Callable[[Window, Window], bool]] = {
+    "today": today,
+    "z": z_rule,
+    "full": full_rule,
+    "bayes": bayes_rule,
+}
+
+
+def window_size(share: float, estimate: int) -> int:
+    """The episodes of a window whose share is `share`: the estimate from the episode count, or its
+    neighbour where only that makes share * n a whole number (dumps lag episode ends by one)."""
+    for n in (estimate, estimate - 1, estimate + 1):
+        if 1 <= n <= WINDOW and abs(share * n - round(share * n)) < 1e-4:
+            return n
+    return max(1, min(WINDOW, estimate))
+
+
+def decisions(run_dir: Path, clock: list[int], episodes: list[int]) -> list[tuple[Window, Window] | None]:
+    """Per evaluation, the gate's (choice, clone) windows it acted on (None before any was logged)."""
+    scalars = gate_scalars(run_dir)
+    per_step: dict[str, dict[int, float]] = {}
+    for tag in ("gate/choice_success", "gate/clone_success"):
+        steps, values = scalars[tag]
+        per_step[tag] = dict(zip(steps.astype(int).tolist(), values.tolist(), strict=True))  # later files win
+    logged = sorted(per_step["gate/choice_success"])
+    out: list[tuple[Window, Window] | None] = []
+    for step in clock:
+        at = [s for s in logged if s <= step]
+        if not at:
+            out.append(None)
+            continue
+        s = at[-1]
+        ended = round(float(np.interp(s, clock, episodes)))  # gate episodes (no demonstration starts)
+        choice_share = per_step["gate/choice_success"][s]
+        clone_share = per_step["gate/clone_success"][s]
+        if math.isnan(choice_share) or math.isnan(clone_share):
+            out.append(None)
+            continue
+        choice_n = window_size(choice_share, min(WINDOW, (ended + 2) // 4))
+        clone_n = window_size(clone_share, min(WINDOW, ended // 4))
+        out.append(((choice_share, choice_n), (clone_share, clone_n)))
+    return out
+
+
+def floor_line(task: str, n: int) -> float:
+    """BC's mean final on the same demonstrations minus 0.05 (the floor rule's line)."""
+    arm = f"bc{n}{NEW_DEMOS.get(task, '')}"
+    finals = [float(r["final"]) for r in read_rows() if (r["task"], r["arm"]) == (task, arm)]
+    return float(np.mean(finals)) - 0.05 if finals else math.nan
+
+
+def read_run(run_dir: Path) -> None:
+    cfg = json.loads((run_dir / "config.json").read_text())
+    arm, task = run_dir.parent.parent.name, run_dir.parent.name
+    if (cfg["agent"].get("demos") or {}).get("reset_prob"):
+        print(f"\n{arm} {task} seed {cfg['seed']}: skipped (demonstration starts: gate episodes unknown)")
+        return
+    rows = read_progress(run_dir)
+    clock = [int(r["env_steps"]) for r in rows]
+    episodes = [int(r["episodes"]) for r in rows]
+    success = [float(r["eval_success_rate"]) for r in rows]
+    clone = success[0]
+    windows = decisions(run_dir, clock, episodes)
+    n = demo_count(arm)
+    line, target = floor_line(task, n), TARGETS.get((task, n))
+    mismatches = sum(
+        1
+        for w, s, c in zip(windows, success, clock, strict=True)
+        if c > 0 and (w is None or not today(*w)) and abs(s - clone) > 1e-9
+    )
+    print(
+        f"\n{arm} {task} seed {cfg['seed']} (to {clock[-1]:,}): clone {clone:.2f}, line {line:.3f}, "
+        f"target {target or '-'}; today's clone evaluations unlike the clone's number: {mismatches}"
+    )
+    print(
+        "\n| rule | choice acts at (of evaluations) | lowest after 2,500 | below the line | final | 95 % from |"
+    )
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    for name, rule in RULES.items():
+        acts = [w is not None and rule(*w) for w in windows]
+        curve = [s if a else clone for s, a in zip(success, acts, strict=True)]
+        after = [s for c, s in zip(clock, curve, strict=True) if c >= 2_500]
+        crossing = sustained_crossing(clock, curve, 0.95)
+        print(
+            f"| {name} | {sum(acts)} of {len(acts)} | {min(after):.2f} | {sum(s < line for s in after)} | "
+            f"{np.mean(curve[-FINAL_EVALS:]):.3f} | {'-' if math.isnan(crossing) else f'{crossing:,.0f}'} |"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", type=Path, nargs="+")
+    for run_dir in parser.parse_args().runs:
+        read_run(run_dir)
+
+
+if __name__ == "__main__":
+    main()
