@@ -2,14 +2,17 @@
 
 The learner speed table's "fast preset (UTD 2)" step (speed_profile.py's setting: UR5ePickPlace-v0,
 fs1, 100 demonstrations, one torch thread, 1,000 stored random-action transitions), timed with its
-networks as they are, then with each of them (the critics' and target critics' heads, the actor's
-network) wrapped in `torch.compile` (fused LayerNorm, ReLU and bias kernels around the products).
+networks as they are and with each of them (the critics' and target critics' heads, the actor's
+network) wrapped in `torch.compile` (fused LayerNorm, ReLU and bias kernels around the products),
+in interleaved rounds (plain, compiled, plain, ...) on the same model.
 
     python studies/learner-benchmarks/speed_compile.py [--updates 100] [--rounds 3] [--mode default]
 
-Prints the floor (learning.matmul_floor) and per round the updates per second of each, then the
-medians and their share of the floor. A probe: compiled kernels round differently, so a compiled
-preset would have to be screened again before it could replace the plain one.
+Prints the floor (learning.matmul_floor, by both clocks) and per round the updates per second of each by
+the wall clock and by the process's CPU time (time.process_time: on a machine shared with other
+work, the time this process ran, not the time it waited for a core), then the medians. A probe:
+compiled kernels round differently, so a compiled preset would have to be screened again before it
+could replace the plain one.
 """
 
 from __future__ import annotations
@@ -24,27 +27,38 @@ from learning import matmul_floor  # type: ignore[import-not-found]
 from speed_profile import fast_preset_model  # type: ignore[import-not-found]
 
 
-def updates_per_second(model: Any, updates: int, batch_size: int) -> float:
-    t0 = time.perf_counter()
+def updates_per_second(model: Any, updates: int, batch_size: int) -> tuple[float, float]:
+    """(wall, CPU time) updates per second of `updates` gradient steps."""
+    wall, cpu = time.perf_counter(), time.process_time()
     model.train(gradient_steps=updates, batch_size=batch_size)
-    return updates / (time.perf_counter() - t0)
+    return updates / (time.perf_counter() - wall), updates / (time.process_time() - cpu)
 
 
-def compile_networks(model: Any, mode: str) -> None:
-    """Wraps each critic head, each target critic head and the actor's network in torch.compile."""
-    import torch as th
-
-    def compiled(module: Any) -> Any:
-        return th.compile(module, mode=None if mode == "default" else mode, dynamic=False)
-
+def network_slots(model: Any) -> list[tuple[Any, str | int]]:
+    """(container, key) of each critic head, target critic head and the actor's network."""
     policy = model.policy
-    for critic in (policy.critic, policy.critic_target):
-        for index, head in enumerate(critic.q_networks):
-            critic.q_networks[index] = compiled(head)
-    policy.actor.mu = compiled(policy.actor.mu)
+    slots: list[tuple[Any, str | int]] = [
+        (critic.q_networks, index)
+        for critic in (policy.critic, policy.critic_target)
+        for index in range(len(critic.q_networks))
+    ]
+    return [*slots, (policy.actor, "mu")]
+
+
+def get(container: Any, key: str | int) -> Any:
+    return getattr(container, key) if isinstance(key, str) else container[key]
+
+
+def put(container: Any, key: str | int, module: Any) -> None:
+    if isinstance(key, str):
+        setattr(container, key, module)
+    else:
+        container[key] = module
 
 
 def main() -> None:
+    import torch as th
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--updates", type=int, default=100)
     parser.add_argument("--rounds", type=int, default=3)
@@ -55,20 +69,40 @@ def main() -> None:
     model = fast_preset_model(args.out_dir)
     batch_size = model.batch_size
     model.train(gradient_steps=args.updates // 2, batch_size=batch_size)  # untimed
-    floor = matmul_floor(model, batch_size, args.updates)
-    plain = [updates_per_second(model, args.updates, batch_size) for _ in range(args.rounds)]
-    compile_networks(model, args.mode)
+    repeats = 4 * args.updates
+    cpu = time.process_time()
+    floor = matmul_floor(model, batch_size, repeats)
+    floor_cpu = repeats / (time.process_time() - cpu)  # with its one recording step (about 1 %)
+    slots = network_slots(model)
+    plain = [get(c, k) for c, k in slots]
+    mode = None if args.mode == "default" else args.mode
+    compiled = [th.compile(module, mode=mode, dynamic=False) for module in plain]
+
+    def use(modules: list[Any]) -> None:
+        for (container, key), module in zip(slots, modules, strict=True):
+            put(container, key, module)
+
+    use(compiled)
     t0 = time.perf_counter()
     model.train(gradient_steps=args.updates // 2, batch_size=batch_size)  # compiles; untimed
     print(f"compiling and {args.updates // 2} steps: {time.perf_counter() - t0:.0f} s")
-    compiled = [updates_per_second(model, args.updates, batch_size) for _ in range(args.rounds)]
-    print(f"floor: {floor:.1f} updates/s (the step's matrix products alone)\n")
-    print("| round | plain [updates/s] | compiled [updates/s] |\n| --- | ---: | ---: |")
-    for index, (p, c) in enumerate(zip(plain, compiled, strict=True)):
-        print(f"| {index} | {p:.1f} | {c:.1f} |")
-    p, c = statistics.median(plain), statistics.median(compiled)
-    print(f"| median | {p:.1f} ({p / floor:.0%} of the floor) | {c:.1f} ({c / floor:.0%}) |")
-    print(f"\ncompiled / plain: {c / p:.2f}")
+    rates: dict[str, list[tuple[float, float]]] = {"plain": [], "compiled": []}
+    for _ in range(args.rounds):
+        for name, modules in (("plain", plain), ("compiled", compiled)):
+            use(modules)
+            rates[name].append(updates_per_second(model, args.updates, batch_size))
+    print(
+        f"floor: {floor:.1f} updates/s by the wall clock, {floor_cpu:.1f} by CPU time (the products alone)\n"
+    )
+    print("| round | plain, wall | plain, CPU time | compiled, wall | compiled, CPU time |")
+    print("| --- | ---: | ---: | ---: | ---: |")
+    for index, (p, c) in enumerate(zip(rates["plain"], rates["compiled"], strict=True)):
+        print(f"| {index} | {p[0]:.1f} | {p[1]:.1f} | {c[0]:.1f} | {c[1]:.1f} |")
+    medians = {name: [statistics.median(r[i] for r in rs) for i in (0, 1)] for name, rs in rates.items()}
+    p, c = medians["plain"], medians["compiled"]
+    print(f"| median [updates/s] | {p[0]:.1f} | {p[1]:.1f} | {c[0]:.1f} | {c[1]:.1f} |")
+    print(f"\ncompiled / plain: wall {c[0] / p[0]:.2f}, CPU time {c[1] / p[1]:.2f}")
+    print(f"of the floor (CPU time): plain {p[1] / floor_cpu:.0%}, compiled {c[1] / floor_cpu:.0%}")
 
 
 if __name__ == "__main__":
