@@ -35,7 +35,8 @@ def updates_per_second(model: Any, updates: int, batch_size: int) -> tuple[float
 
 
 def network_slots(model: Any) -> list[tuple[Any, str | int]]:
-    """(container, key) of each critic head, target critic head and the actor's network."""
+    """(container, key) of each critic head, target critic head and the actor's network (SB3 keeps
+    the heads in a plain list, the actor's network as an attribute)."""
     policy = model.policy
     slots: list[tuple[Any, str | int]] = [
         (critic.q_networks, index)

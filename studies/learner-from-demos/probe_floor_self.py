@@ -10,8 +10,7 @@ about 0.05, as large as the rule's margin; this shows how often BC's own policie
 
 from __future__ import annotations
 
-import numpy as np
-from run import NEW_DEMOS, read_rows
+from run import NEW_DEMOS, floor_line, read_rows
 
 
 def main() -> None:
@@ -24,7 +23,7 @@ def main() -> None:
         if not arm.endswith(suffix) or arm.removeprefix("bc").removesuffix(suffix) not in ("10", "100"):
             continue  # arms of the task's old demonstrations
         bc = sorted((r for r in rows if (r["task"], r["arm"]) == (task, arm)), key=lambda r: int(r["seed"]))
-        line = float(np.mean([float(r["final"]) for r in bc])) - 0.05
+        line = floor_line(rows, task, int(arm.removeprefix("bc").removesuffix(suffix)), suffix)
         fresh = [float(r["fresh"]) for r in bc]
         below = sum(f < line for f in fresh)
         cells = ", ".join(f"{f:.2f}" for f in fresh)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from probe_gate import gate_scalars
-from run import NEW_DEMOS, TARGETS, demo_count, read_rows
+from run import NEW_DEMOS, TARGETS, demo_count, floor_line, read_rows
 from scipy import stats
 
 from tsrl.agents.acting_gate import MIN_EPISODES, WINDOW
@@ -110,13 +110,6 @@ def decisions(run_dir: Path, clock: list[int], episodes: list[int]) -> list[tupl
     return out
 
 
-def floor_line(task: str, n: int) -> float:
-    """BC's mean final on the same demonstrations minus 0.05 (the floor rule's line)."""
-    arm = f"bc{n}{NEW_DEMOS.get(task, '')}"
-    finals = [float(r["final"]) for r in read_rows() if (r["task"], r["arm"]) == (task, arm)]
-    return float(np.mean(finals)) - 0.05 if finals else math.nan
-
-
 def read_run(run_dir: Path) -> None:
     cfg = json.loads((run_dir / "config.json").read_text())
     arm, task = run_dir.parent.parent.name, run_dir.parent.name
@@ -130,7 +123,7 @@ def read_run(run_dir: Path) -> None:
     clone = success[0]
     windows = decisions(run_dir, clock, episodes)
     n = demo_count(arm)
-    line, target = floor_line(task, n), TARGETS.get((task, n))
+    line, target = floor_line(read_rows(), task, n, NEW_DEMOS.get(task, "")), TARGETS.get((task, n))
     mismatches = sum(
         1
         for w, s, c in zip(windows, success, clock, strict=True)

@@ -359,6 +359,17 @@ def verdicts() -> None:
                 _verdict(rows, task, n, target, f"{arm}{n}{NEW_DEMOS[task]}", pre, NEW_DEMOS[task])
 
 
+#: How far below BC's mean final an evaluation may lie (the issue's floor rule).
+FLOOR_MARGIN = 0.05
+
+
+def floor_line(rows: list[dict[str, str]], task: str, n: int, suffix: str = "") -> float:
+    """The floor rule's line on `task`: BC's mean final on the same `n` demonstrations (arm
+    bc{n}{suffix}) minus FLOOR_MARGIN; NaN without BC rows."""
+    bc = [float(r["final"]) for r in rows if (r["task"], r["arm"]) == (task, f"bc{n}{suffix}")]
+    return float(np.mean(bc)) - FLOOR_MARGIN if bc else math.nan
+
+
 def _verdict(
     rows: list[dict[str, str]], task: str, n: int, target: int, arm: str, pre: str, suffix: str = ""
 ) -> None:
@@ -371,7 +382,7 @@ def _verdict(
         met = "missed" if within < len(fast) else "met" if len(fast) == 5 else "not decided"
         print(
             f"| {task} | {n} | {arm} ({pre}) | {floor:.2f} | {len(fast)} | {lowest:.2f} | "
-            f"{'yes' if lowest >= floor - 0.05 else 'no'} | {within} of {len(fast)} within {target:,} | {met} |"
+            f"{'yes' if lowest >= floor - FLOOR_MARGIN else 'no'} | {within} of {len(fast)} within {target:,} | {met} |"
         )
 
 
@@ -414,7 +425,7 @@ def summary(rows: list[dict[str, str]] | None = None) -> list[str]:
             continue
         lowest, within = _lowest_and_within(fast, target or 0)
         reached = f"{within} of {len(fast)} within {target:,}" if target else "no target"
-        line = float(np.mean(bc)) - 0.05
+        line = floor_line(rows, task, n, suffix)
         held = "yes" if lowest >= line else "no"
         lines.append(
             f"| {task} | {n} | {bc_cell} | {_per(fast, 'final')} | {len(fast)} of 5 | {reached} | "
