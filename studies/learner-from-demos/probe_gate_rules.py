@@ -12,6 +12,11 @@ Per run: the clone's number, the task's floor line, and per rule the lowest eval
 steps, the final (mean of the last three evaluations) and the env steps to 95 % (sustained); and the
 check that today's rule, reconstructed from the logged windows, keeps the clone exactly where the
 logged evaluation is the clone's number.
+
+Pre-registration 36 (a): the row `limit` is the gate with the clone measured on many episodes, its
+window replaced by its evaluation at 0 env steps. It is not stricter than today's where the clone's
+window measured above that number: where it lets the choice act and today's did not, the evaluation
+is unknown (counted; lowest, final and crossing are then read on the known ones, marked `?`).
 """
 
 from __future__ import annotations
@@ -72,6 +77,11 @@ RULES: dict[str, Callable[[Window, Window], bool]] = {
     "full": full_rule,
     "bayes": bayes_rule,
 }
+
+
+def limit_rule(choice: Window, clone_number: float) -> bool:
+    """The choice's window (at least MIN_EPISODES) strictly above the clone's evaluation."""
+    return choice[1] >= MIN_EPISODES and choice[0] > clone_number
 
 
 def window_size(share: float, estimate: int) -> int:
@@ -137,15 +147,39 @@ def read_run(run_dir: Path) -> None:
         "\n| rule | choice acts at (of evaluations) | lowest after 2,500 | below the line | final | 95 % from |"
     )
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    logged = [w is not None and today(*w) for w in windows]
     for name, rule in RULES.items():
         acts = [w is not None and rule(*w) for w in windows]
-        curve = [s if a else clone for s, a in zip(success, acts, strict=True)]
-        after = [s for c, s in zip(clock, curve, strict=True) if c >= 2_500]
-        crossing = sustained_crossing(clock, curve, 0.95)
-        print(
-            f"| {name} | {sum(acts)} of {len(acts)} | {min(after):.2f} | {sum(s < line for s in after)} | "
-            f"{np.mean(curve[-FINAL_EVALS:]):.3f} | {'-' if math.isnan(crossing) else f'{crossing:,.0f}'} |"
-        )
+        print_row(name, acts, [False] * len(acts), clock, success, clone, line)
+    acts = [w is not None and w[1][1] >= MIN_EPISODES and limit_rule(w[0], clone) for w in windows]
+    unknown = [a and not t for a, t in zip(acts, logged, strict=True)]
+    print_row("limit", acts, unknown, clock, success, clone, line)
+
+
+def print_row(
+    name: str,
+    acts: list[bool],
+    unknown: list[bool],
+    clock: list[int],
+    success: list[float],
+    clone: float,
+    line: float,
+) -> None:
+    """One rule's table row: evaluations where it acts are the logged ones, else the clone's number;
+    `unknown` ones (the rule acts where the logged run's gate did not) are left out and counted."""
+    curve = [s if a else clone for s, a in zip(success, acts, strict=True)]
+    known = [(c, s) for c, s, u in zip(clock, curve, unknown, strict=True) if not u]
+    after = [s for c, s in known if c >= 2_500]
+    crossing = sustained_crossing([c for c, _ in known], [s for _, s in known], 0.95)
+    mark = "?" if any(unknown[-FINAL_EVALS:]) else ""
+    final = np.mean(
+        [s for s, u in zip(curve[-FINAL_EVALS:], unknown[-FINAL_EVALS:], strict=True) if not u] or [np.nan]
+    )
+    unknown_note = f" ({sum(unknown)} unknown)" if any(unknown) else ""
+    print(
+        f"| {name} | {sum(acts)} of {len(acts)}{unknown_note} | {min(after, default=math.nan):.2f} | {sum(s < line for s in after)} | "
+        f"{final:.3f}{mark} | {'-' if math.isnan(crossing) else f'{crossing:,.0f}'}{'?' if any(unknown) else ''} |"
+    )
 
 
 def main() -> None:

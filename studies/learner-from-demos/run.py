@@ -22,7 +22,10 @@ clone with fixed dropout masks; EMaQ's best of N; tsrl.agents.reference; pre-reg
 ens100 / ens10: bound's with `--critics 5 --actor-value lowest` (IBRL's critic ensemble: the choice and
 the TD target take the smallest of 5 heads, the actor climbs the lowest; pre-registration 24);
 clones100 / clones10: bound's with `--clones 5` (the reference is the mean action of 5 clones;
-pre-registration 26);
+pre-registration 26); frontier100 / frontier10: bound's with RFCL's reverse curriculum
+(pre-registration 28); nstep100 / nstep10: bound's with `--n-step 3` (pre-registration 32);
+measure100 / measure10: bound's with `--clone-episodes 100` (the gate measures the clone on its first
+100 episodes; pre-registration 36);
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
@@ -100,12 +103,23 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
     "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10, "
-    "frontier100, frontier10, nstep100, nstep10"
+    "frontier100, frontier10, nstep100, nstep10, measure100, measure10"
 )
 
 
 #: The learner arms built on `bound` (the preset with the return bound), each adding one option.
-BOUND_ARMS = ("bound", "adapt", "reset", "distill", "propose", "ens", "clones", "frontier", "nstep")
+BOUND_ARMS = (
+    "bound",
+    "adapt",
+    "reset",
+    "distill",
+    "propose",
+    "ens",
+    "clones",
+    "frontier",
+    "nstep",
+    "measure",
+)
 
 
 def budget(task: str, n: int) -> int:
@@ -165,6 +179,8 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             options["clones"] = 5
         if arm.startswith("nstep"):  # bound's, with 3-step targets for the critic
             options["n_step"] = 3
+        if arm.startswith("measure"):  # bound's, the gate measuring the clone on 100 episodes
+            options["clone_episodes"] = 100
         if arm.startswith("ens"):  # bound's, with a pessimistic ensemble of 5 critic heads
             options |= {"critics": 5, "actor_value": "lowest"}
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable

@@ -7,11 +7,12 @@ not rest on it alone. Training episodes cycle through four kinds:
 
     explore (the choice plus TD3's noise), choice (no noise), explore, clone (no noise)
 
-and the success of the last `WINDOW` episodes of each measured kind (the last step's
-info["is_success"], as evaluation counts it) decides: the choice acts where its measured success is
-strictly above the clone's, each measured on at least `MIN_EPISODES`, else the clone. The clone is
-frozen (and the observation normaliser with it), so it is measured once: after its first `WINDOW`
-episodes its place in the cycle explores. Every episode is training data; one started from a
+and measured success (the last step's info["is_success"], as evaluation counts it) decides: the
+choice acts where the success of its last `WINDOW` episodes is strictly above the clone's, each
+measured on at least `MIN_EPISODES`, else the clone. The clone is frozen (and the observation
+normaliser with it), so it is measured once, on its first `clone_episodes` (AgentConfig.
+clone_episodes; by default as many as `WINDOW`), all of which count: after them its place in the
+cycle explores. Every episode is training data; one started from a
 demonstration's state (tsrl.agents.demo_resets) is neither measured nor counted in the cycle, so the
 gate compares the policies from the task's own starts, where evaluation runs them. `GatedTD3` is TD3 with the
 episode kinds (`_sample_action`) and the bookkeeping at episode ends (`_store_transition`); the
@@ -36,6 +37,7 @@ import numpy as np
 from stable_baselines3 import TD3
 from stable_baselines3.common.noise import ActionNoise
 
+from .config import CLONE_EPISODES
 from .demo_resets import DEMO_RESET
 from .reference import CHOICE, CLONE, ReferenceTD3Policy
 
@@ -61,6 +63,8 @@ class ActingGate:
     episodes: int = 0
     """Training episodes ended."""
     measured: dict[str, list[bool]] = field(default_factory=lambda: {CHOICE: [], CLONE: []})
+    clone_episodes: int = CLONE_EPISODES
+    """The clone's episodes measured (all of them count) before its place in the cycle explores."""
     adapt_noise: bool = False
     """Measure the explore episodes and adapt their noise's scale (module docstring)."""
     noise_scale: float = 1.0
@@ -70,12 +74,13 @@ class ActingGate:
     def kind(self) -> str:
         """The kind of the episode under way."""
         kind = EPISODE_KINDS[self.episodes % len(EPISODE_KINDS)]
-        return EXPLORE if kind == CLONE and len(self.measured[CLONE]) == WINDOW else kind
+        return EXPLORE if kind == CLONE and len(self.measured[CLONE]) >= self.clone_episodes else kind
 
     def end_episode(self, success: bool) -> None:
         kind = self.kind
         if kind in self.measured or (kind == EXPLORE and self.adapt_noise):
-            self.measured[kind] = [*self.measured.get(kind, []), success][-WINDOW:]
+            window = self.clone_episodes if kind == CLONE else WINDOW
+            self.measured[kind] = [*self.measured.get(kind, []), success][-window:]
         if kind == EXPLORE and self.adapt_noise:
             self._adapt_noise()
         self.episodes += 1
@@ -94,7 +99,8 @@ class ActingGate:
         self.measured[EXPLORE] = []  # judged again at the new scale
 
     def success(self, kind: str) -> float:
-        """Measured success of `kind` over its window (nan before its first episode)."""
+        """Measured success of `kind` over its window, the clone's over all its measured episodes (nan
+        before the first)."""
         window = self.measured.get(kind, [])
         return float(np.mean(window)) if window else float("nan")
 

@@ -41,6 +41,9 @@ LAYER_NORMS: tuple[str, ...] = typing.get_args(LayerNorm)
 ACTOR_VALUES: tuple[str, ...] = typing.get_args(ActorValue)
 #: The algorithms whose critic heads AgentConfig.critics sets (stable-baselines3's n_critics).
 CRITIC_ENSEMBLE_ALGOS = ("td3",)
+#: The frozen clone's episodes the fast learner's acting gate measures by default (AgentConfig.
+#: clone_episodes): as many as its window of the choice (tsrl.agents.acting_gate.WINDOW).
+CLONE_EPISODES = 20
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
 #: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
 #: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
@@ -356,6 +359,12 @@ class AgentConfig:
     winnable: halved while their success is below 3/4 of the noise-free choice's, doubled back (up
     to action_noise) at 95 % of it (tsrl.agents.acting_gate). False (default): action_noise
     throughout."""
+    clone_episodes: int = CLONE_EPISODES
+    """Episodes of the fast learner's frozen clone that its acting gate measures before the clone's
+    place in the episode cycle explores; the gate compares the choice's last 20 episodes with the
+    clone's success over all of these (tsrl.agents.acting_gate). More measure the clone better (it
+    does not change); each costs an episode without exploration noise. 20 (default): as many as the
+    choice's window."""
     distill_choice: float = 0.0
     """Weight of a loss that clones the fast learner's frozen clone into its actor on every row of the
     batch where the critic prefers the clone's action, as its choice does (tsrl.agents.choice_distillation):
@@ -442,6 +451,7 @@ class AgentConfig:
                 f"ddpg, demonstrations and action_noise > 0 (got learner {self.learner!r}, algo {self.algo!r}, "
                 f"demos {self.demos.path!r}, action_noise {self.action_noise!r}); accepted without them: false"
             )
+        self._check_clone_episodes()
         self._check_weight("distill_choice", "none")
         self._needs_reference("distill_choice", "clones the fast learner's clone into its actor")
         check_int("clone_proposals", self.clone_proposals, 0)
@@ -506,6 +516,20 @@ class AgentConfig:
                 f"{name} {value!r} {what}: it needs --learner fast, algo td3 or ddpg and demonstrations (got "
                 f"learner {self.learner!r}, algo {self.algo!r}, demos {self.demos.path!r}); accepted without "
                 "them: 0"
+            )
+
+    def _check_clone_episodes(self) -> None:
+        if self.clone_episodes == CLONE_EPISODES:
+            return
+        from .acting_gate import MIN_EPISODES  # the gate's rule; torch only where the option is set
+
+        check_int("clone_episodes", self.clone_episodes, MIN_EPISODES)
+        if not self.has_reference:
+            raise InvalidConfig(
+                f"clone_episodes {self.clone_episodes!r} sets how long the fast learner's gate measures its "
+                f"clone: it needs --learner fast, algo td3 or ddpg and demonstrations (got learner "
+                f"{self.learner!r}, algo {self.algo!r}, demos {self.demos.path!r}); accepted without them: "
+                f"{CLONE_EPISODES}"
             )
 
     def _check_n_step(self) -> None:
@@ -752,7 +776,8 @@ class TrainConfig:
         from demonstration states `__demo-resets-<prob>` (with a reverse curriculum `__frontier-<k>`,
         `__curriculum-steps-<N>` or `__curriculum-success-<s>`), runs with an action
         penalty `__action-l2-<weight>`, runs with a residual actor `__residual-<alpha>`, runs with a return bound
-        `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs that distil the
+        `__return-bound-<weight>`, runs with adaptive noise `__adaptive-noise`, runs whose gate
+        measures the clone on N episodes other than 20 `__clone-episodes-<N>`, runs that distil the
         choice into the actor `__distill-choice-<weight>`, runs whose choice ranks K thinned clones too
         `__clone-proposals-<K>`, runs whose reference averages C clones `__clones-<C>`, runs with N critics
         other than 2 `__critics-<N>`, runs with N-step targets `__n-step-<N>`, runs whose actor climbs
@@ -767,6 +792,11 @@ class TrainConfig:
         suffix += f"__residual-{self.agent.residual:g}" if self.agent.residual else ""
         suffix += f"__return-bound-{self.agent.return_bound:g}" if self.agent.return_bound else ""
         suffix += "__adaptive-noise" if self.agent.adaptive_noise else ""
+        suffix += (
+            f"__clone-episodes-{self.agent.clone_episodes}"
+            if self.agent.clone_episodes != CLONE_EPISODES
+            else ""
+        )
         suffix += f"__distill-choice-{self.agent.distill_choice:g}" if self.agent.distill_choice else ""
         suffix += f"__clone-proposals-{self.agent.clone_proposals}" if self.agent.clone_proposals else ""
         suffix += f"__clones-{self.agent.clones}" if self.agent.clones != 1 else ""

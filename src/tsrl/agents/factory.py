@@ -196,6 +196,7 @@ def make_agent(cfg: TrainConfig, env: VecEnv, tensorboard_log: str | None = None
         model = algo_class(a)(policy, env, **kwargs)
         if isinstance(model, GatedTD3):  # a resumed run's gate comes back with its settings
             model.gate.adapt_noise = a.adaptive_noise
+            model.gate.clone_episodes = a.clone_episodes
         normalizer = env if isinstance(env, VecNormalize) else None
         demos = attach_demos(model, a.demos, normalizer)
         if a.starts_from_clone:  # the actor (and its reference, target) starts as BC's
