@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch as th
 from probe_failures import load_run  # type: ignore[import-not-found]
-from probe_left import left_class  # type: ignore[import-not-found]
+from probe_left import add_class_arguments, left_class  # type: ignore[import-not-found]
 
 from tsrl.agents.reference import heads
 
@@ -88,11 +88,7 @@ def main() -> None:
     parser.add_argument(
         "--tool-dims", type=int, default=1, help="the action's last dimensions the hold keeps"
     )
-    parser.add_argument("--radius", type=float, default=0.05, help="the task's success radius [m]")
-    parser.add_argument("--rest", type=float, default=0.02, help="the box's height resting on the table [m]")
-    parser.add_argument(
-        "--lift", type=float, default=0.02, help="height above rest that counts as lifted [m]"
-    )
+    add_class_arguments(parser)
     args = parser.parse_args()
     print(
         "| run | env steps | rule | success | hold acts (share of steps) | passed through | of them the hold valued higher |"

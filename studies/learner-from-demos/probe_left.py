@@ -65,15 +65,20 @@ def left_class(
     return ("passed through" if speed > radius / 2 else "drifted off"), lifted
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dirs", type=Path, nargs="+")
-    parser.add_argument("--episodes", type=int, default=100)
+def add_class_arguments(parser: argparse.ArgumentParser) -> None:
+    """left_class's thresholds as options: --radius, --rest, --lift [m]."""
     parser.add_argument("--radius", type=float, default=0.05, help="the task's success radius [m]")
     parser.add_argument("--rest", type=float, default=0.02, help="the box's height resting on the table [m]")
     parser.add_argument(
         "--lift", type=float, default=0.02, help="height above rest that counts as lifted [m]"
     )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dirs", type=Path, nargs="+")
+    parser.add_argument("--episodes", type=int, default=100)
+    add_class_arguments(parser)
     args = parser.parse_args()
     print(
         "| run | env steps | success | failures | left (pushed) | "

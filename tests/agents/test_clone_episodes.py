@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from stable_baselines3 import TD3
-from training_helpers import saved_reach_demos
+from training_helpers import fast_reach, saved_reach_demos
 
 import tsrl  # noqa: F401  (registers the environments)
 from tsrl.agents import AgentConfig, TrainConfig, make_agent, make_vec_env, resume, train
@@ -20,8 +20,6 @@ from tsrl.agents.config import CLONE_EPISODES, DemoConfig
 from tsrl.agents.reference import CHOICE, CLONE
 from tsrl.exceptions import InvalidConfig
 
-REACH = "tsrl/UR5eReach-v0"
-
 
 @pytest.fixture(scope="module")
 def reach_demos(tmp_path_factory) -> Path:
@@ -29,10 +27,8 @@ def reach_demos(tmp_path_factory) -> Path:
 
 
 def _fast(path: Path, **agent: object) -> TrainConfig:
-    return TrainConfig(
-        env_id=REACH, obs="fs1", total_timesteps=400, eval_freq=200, eval_episodes=2, checkpoint_freq=200,
-        agent=AgentConfig(learner="fast", batch_size=64, bc_steps=300, demos=DemoConfig(path=str(path)), **agent),
-    )  # fmt: skip
+    """fast_reach with an evaluation and a checkpoint every 200 env steps."""
+    return dataclasses_replace(fast_reach(path, **agent), eval_freq=200, eval_episodes=2, checkpoint_freq=200)
 
 
 def test_the_default_is_the_gate_as_before():
