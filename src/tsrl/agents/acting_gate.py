@@ -37,7 +37,7 @@ import numpy as np
 from stable_baselines3 import TD3
 from stable_baselines3.common.noise import ActionNoise
 
-from .config import CLONE_EPISODES
+from .config import CLONE_EPISODES, MIN_EPISODES
 from .demo_resets import DEMO_RESET
 from .reference import CHOICE, CLONE, ReferenceTD3Policy
 
@@ -46,8 +46,6 @@ EXPLORE = "explore"
 EPISODE_KINDS = (EXPLORE, CHOICE, EXPLORE, CLONE)
 WINDOW = 20
 """Measured episodes of each kind compared (the latest)."""
-MIN_EPISODES = 10
-"""Measured episodes each kind needs before the choice may act."""
 NOISE_DOWN = 0.75
 """The explore episodes' success, as a share of the choice's, below which the noise halves."""
 NOISE_UP = 0.95

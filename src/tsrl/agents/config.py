@@ -44,6 +44,9 @@ CRITIC_ENSEMBLE_ALGOS = ("td3",)
 #: The frozen clone's episodes the fast learner's acting gate measures by default (AgentConfig.
 #: clone_episodes): as many as its window of the choice (tsrl.agents.acting_gate.WINDOW).
 CLONE_EPISODES = 20
+#: Measured episodes each of the gate's kinds needs before the choice may act (tsrl.agents.acting_gate;
+#: here so that the configuration's check reads it without importing the gate's torch code).
+MIN_EPISODES = 10
 #: Each learner preset's value of the options left at None (AgentConfig.learner). paper: today's
 #: agent (the paper's settings). fast (issue 55, studies/learner-from-demos): a learner that starts at
 #: its demonstrations: the actor pre-trained by behaviour cloning (bc_steps) before the first env
@@ -521,8 +524,6 @@ class AgentConfig:
     def _check_clone_episodes(self) -> None:
         if self.clone_episodes == CLONE_EPISODES:
             return
-        from .acting_gate import MIN_EPISODES  # the gate's rule; torch only where the option is set
-
         check_int("clone_episodes", self.clone_episodes, MIN_EPISODES)
         if not self.has_reference:
             raise InvalidConfig(
