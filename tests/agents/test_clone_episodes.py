@@ -74,7 +74,7 @@ def test_the_setting_reaches_the_gate_of_a_new_and_of_a_resumed_run(reach_demos,
     assert loaded.gate.clone_episodes == 2 * WINDOW  # type: ignore[attr-defined]
 
 
-@pytest.mark.parametrize("value", [MIN_EPISODES - 1, 0, 12.5, "many", True])
+@pytest.mark.parametrize("value", [MIN_EPISODES - 1, 0, 12.5, 20.0, "many", True])
 def test_a_bad_count_is_one_line(reach_demos, value):
     with pytest.raises(InvalidConfig, match=rf"^clone_episodes must be an integer >= {MIN_EPISODES}") as err:
         AgentConfig(learner="fast", demos=DemoConfig(path=str(reach_demos)), clone_episodes=value)  # type: ignore[arg-type]

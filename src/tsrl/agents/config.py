@@ -522,10 +522,8 @@ class AgentConfig:
             )
 
     def _check_clone_episodes(self) -> None:
-        if self.clone_episodes == CLONE_EPISODES:
-            return
         check_int("clone_episodes", self.clone_episodes, MIN_EPISODES)
-        if not self.has_reference:
+        if self.clone_episodes != CLONE_EPISODES and not self.has_reference:
             raise InvalidConfig(
                 f"clone_episodes {self.clone_episodes!r} sets how long the fast learner's gate measures its "
                 f"clone: it needs --learner fast, algo td3 or ddpg and demonstrations (got learner "
