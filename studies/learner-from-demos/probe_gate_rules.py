@@ -79,9 +79,9 @@ RULES: dict[str, Callable[[Window, Window], bool]] = {
 }
 
 
-def limit_rule(choice: Window, clone_number: float) -> bool:
-    """The choice's window (at least MIN_EPISODES) strictly above the clone's evaluation."""
-    return choice[1] >= MIN_EPISODES and choice[0] > clone_number
+def limit_rule(choice: Window, clone: Window, clone_number: float) -> bool:
+    """Today's rule with the clone's window replaced by its evaluation `clone_number`."""
+    return today(choice, (clone_number, clone[1]))
 
 
 def window_size(share: float, estimate: int) -> int:
@@ -151,7 +151,7 @@ def read_run(run_dir: Path) -> None:
     for name, rule in RULES.items():
         acts = [w is not None and rule(*w) for w in windows]
         print_row(name, acts, [False] * len(acts), clock, success, clone, line)
-    acts = [w is not None and w[1][1] >= MIN_EPISODES and limit_rule(w[0], clone) for w in windows]
+    acts = [w is not None and limit_rule(*w, clone) for w in windows]
     unknown = [a and not t for a, t in zip(acts, logged, strict=True)]
     print_row("limit", acts, unknown, clock, success, clone, line)
 
