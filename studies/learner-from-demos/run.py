@@ -25,7 +25,8 @@ clones100 / clones10: bound's with `--clones 5` (the reference is the mean actio
 pre-registration 26); frontier100 / frontier10: bound's with RFCL's reverse curriculum
 (pre-registration 28); nstep100 / nstep10: bound's with `--n-step 3` (pre-registration 32);
 measure100 / measure10: bound's with `--clone-episodes 100` (the gate measures the clone on its first
-100 episodes; pre-registration 36);
+100 episodes; pre-registration 36); lean100 / lean10: bound's with `--utd 1 --bc-steps 2000` (fewer
+gradient steps: pre-registration 39); small100 / small10: lean's with `--net-arch 128 128`;
 radius100 / radius10: the same with `--reward-scale 1` (pre-registration 10);
 igate100 / igate10: that of commits ef4c768-1ca11d0 (pre-registration 6: the gate,
 IBRL's choice, the clone measured once); gate100 / gate10:
@@ -103,7 +104,7 @@ NEW_DEMOS = {"UR5ePickPlace-v0": "-press"}
 ACCEPTED_ARMS = (
     "bc100, bc10, margin100, margin10, radius100, radius10, bound100, bound10, adapt100, adapt10, "
     "reset100, reset10, distill100, distill10, propose100, propose10, ens100, ens10, clones100, clones10, "
-    "frontier100, frontier10, nstep100, nstep10, measure100, measure10"
+    "frontier100, frontier10, nstep100, nstep10, measure100, measure10, lean100, lean10, small100, small10"
 )
 
 
@@ -119,6 +120,8 @@ BOUND_ARMS = (
     "frontier",
     "nstep",
     "measure",
+    "lean",
+    "small",
 )
 
 
@@ -181,6 +184,10 @@ def arm_config(arm: str, task: str, seed: int, demos: Path) -> TrainConfig:
             options["n_step"] = 3
         if arm.startswith("measure"):  # bound's, the gate measuring the clone on 100 episodes
             options["clone_episodes"] = 100
+        if arm.startswith(("lean", "small")):  # bound's, fewer gradient steps (and smaller networks)
+            options |= {"utd": 1.0, "bc_steps": 2_000}
+        if arm.startswith("small"):
+            options["net_arch"] = (128, 128)
         if arm.startswith("ens"):  # bound's, with a pessimistic ensemble of 5 critic heads
             options |= {"critics": 5, "actor_value": "lowest"}
         if arm.startswith("adapt"):  # bound's, with the explore noise kept winnable
