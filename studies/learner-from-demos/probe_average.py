@@ -18,7 +18,6 @@ data/probes.csv with `--probe`; a killed run resumes, its slow average started a
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 from collections.abc import Iterator
@@ -27,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import torch as th
-from run import BUDGETS, train_arm  # type: ignore[import-not-found]
+from run import one_run_parser, train_arm  # type: ignore[import-not-found]
 
 from tsrl.agents import training as training_module
 
@@ -105,11 +104,7 @@ def attach(averages: Averages) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("arm")
-    parser.add_argument("task", choices=sorted(BUDGETS))
-    parser.add_argument("--seed", type=int, required=True)
-    parser.add_argument("--out", type=Path, required=True)
+    parser = one_run_parser(__doc__.splitlines()[0])
     parser.add_argument("--horizon", type=float, default=2_500.0, help="env steps of the slow average")
     parser.add_argument("--curves", type=Path, default=Path(__file__).parent / "data" / "probe-curves")
     parser.add_argument("--probe", action="store_true", help="the row to data/probes.csv (as run.py's)")

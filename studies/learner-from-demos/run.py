@@ -465,6 +465,17 @@ def _lowest_and_within(fast: list[dict[str, str]], target: int) -> tuple[float, 
     return lowest, within
 
 
+def one_run_parser(description: str) -> argparse.ArgumentParser:
+    """The arguments of the scripts that train one run of an arm (time_to_target.py, probe_average.py):
+    ARM TASK --seed S --out DIR."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("arm")
+    parser.add_argument("task", choices=sorted(BUDGETS))
+    parser.add_argument("--seed", type=int, required=True)
+    parser.add_argument("--out", type=Path, required=True)
+    return parser
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)

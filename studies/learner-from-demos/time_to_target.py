@@ -13,12 +13,10 @@ core: the time is the point.
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
-from pathlib import Path
 
-from run import BUDGETS, arm_config, demo_count, demo_file
+from run import arm_config, demo_count, demo_file, one_run_parser
 
 from tsrl.agents import train
 from tsrl.agents.training import read_progress
@@ -26,11 +24,7 @@ from tsrl.experiments.curves import sustained_crossing
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("arm")
-    parser.add_argument("task", choices=sorted(BUDGETS))
-    parser.add_argument("--seed", type=int, required=True)
-    parser.add_argument("--out", type=Path, required=True)
+    parser = one_run_parser(__doc__.splitlines()[0])
     args = parser.parse_args()
     demos = demo_file(args.out, args.task, demo_count(args.arm))  # recorded before the clock starts
     cfg = arm_config(args.arm, args.task, args.seed, demos)
