@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -34,7 +34,7 @@ AVERAGES = ("target", "slow")
 
 
 @contextmanager
-def actor_weights(actor: th.nn.Module, weights: list[th.Tensor]) -> Iterator[None]:
+def actor_weights(actor: th.nn.Module, weights: Sequence[th.Tensor]) -> Iterator[None]:
     """The actor with `weights` (one per parameter) for the block, its own restored after it."""
     own = [p.detach().clone() for p in actor.parameters()]
     with th.no_grad():
@@ -75,7 +75,7 @@ class Averages:
     def evaluate(self, callback: Any, model: Any, own: float) -> None:
         policy = model.policy
         evaluator, normalizer = callback.session.evaluator, callback.session.normalizer
-        target = [p.detach().clone() for p in policy.actor_target.actor.parameters()]
+        target = list(policy.actor_target.actor.parameters())  # read only: copied into the actor
         assert self.slow is not None
         row: list[Any] = [model.num_timesteps, f"{own:.4f}"]
         for weights in (target, self.slow):
