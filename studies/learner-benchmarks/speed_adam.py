@@ -17,13 +17,12 @@ The optimizer is 18 % of the fast preset's step (speed_profile.py). tsrl's optim
 from __future__ import annotations
 
 import argparse
-import statistics
 from pathlib import Path
 from typing import Any
 
 import torch as th
 from learning import matmul_floor  # type: ignore[import-not-found]
-from speed_compile import updates_per_second  # type: ignore[import-not-found]
+from speed_compile import print_rounds, updates_per_second  # type: ignore[import-not-found]
 from speed_profile import fast_preset_model  # type: ignore[import-not-found]
 
 IMPLEMENTATIONS = ("foreach", "fused")
@@ -87,13 +86,8 @@ def main() -> None:
             use(model, implementation)
             rates[implementation].append(updates_per_second(model, args.updates, batch_size))
     print(f"floor: {floor:.1f} updates/s by the wall clock (the products alone)\n")
-    print("| round | foreach, wall | foreach, CPU time | fused, wall | fused, CPU time |")
-    print("| --- | ---: | ---: | ---: | ---: |")
-    for index, (a, b) in enumerate(zip(rates["foreach"], rates["fused"], strict=True)):
-        print(f"| {index} | {a[0]:.1f} | {a[1]:.1f} | {b[0]:.1f} | {b[1]:.1f} |")
-    medians = {name: [statistics.median(r[i] for r in rs) for i in (0, 1)] for name, rs in rates.items()}
+    medians = print_rounds(rates)
     a, b = medians["foreach"], medians["fused"]
-    print(f"| median [updates/s] | {a[0]:.1f} | {a[1]:.1f} | {b[0]:.1f} | {b[1]:.1f} |")
     print(f"\nfused / foreach: wall {b[0] / a[0]:.2f}, CPU time {b[1] / a[1]:.2f}")
     print(f"of the floor (wall): foreach {a[0] / floor:.0%}, fused {b[0] / floor:.0%}")
 

@@ -34,6 +34,20 @@ def updates_per_second(model: Any, updates: int, batch_size: int) -> tuple[float
     return updates / (time.perf_counter() - wall), updates / (time.process_time() - cpu)
 
 
+def print_rounds(rates: dict[str, list[tuple[float, float]]]) -> dict[str, list[float]]:
+    """Prints the interleaved rounds of two variants (updates/s by the wall clock and by CPU time) and
+    their medians as a table; returns the medians [wall, CPU time] by variant."""
+    first, second = rates
+    print(f"| round | {first}, wall | {first}, CPU time | {second}, wall | {second}, CPU time |")
+    print("| --- | ---: | ---: | ---: | ---: |")
+    for index, (a, b) in enumerate(zip(rates[first], rates[second], strict=True)):
+        print(f"| {index} | {a[0]:.1f} | {a[1]:.1f} | {b[0]:.1f} | {b[1]:.1f} |")
+    medians = {name: [statistics.median(r[i] for r in rs) for i in (0, 1)] for name, rs in rates.items()}
+    a, b = medians[first], medians[second]
+    print(f"| median [updates/s] | {a[0]:.1f} | {a[1]:.1f} | {b[0]:.1f} | {b[1]:.1f} |")
+    return medians
+
+
 def network_slots(model: Any) -> list[tuple[Any, str | int]]:
     """(container, key) of each critic head, target critic head and the actor's network (SB3 keeps
     the heads in a plain list, the actor's network as an attribute)."""
@@ -95,13 +109,8 @@ def main() -> None:
     print(
         f"floor: {floor:.1f} updates/s by the wall clock, {floor_cpu:.1f} by CPU time (the products alone)\n"
     )
-    print("| round | plain, wall | plain, CPU time | compiled, wall | compiled, CPU time |")
-    print("| --- | ---: | ---: | ---: | ---: |")
-    for index, (p, c) in enumerate(zip(rates["plain"], rates["compiled"], strict=True)):
-        print(f"| {index} | {p[0]:.1f} | {p[1]:.1f} | {c[0]:.1f} | {c[1]:.1f} |")
-    medians = {name: [statistics.median(r[i] for r in rs) for i in (0, 1)] for name, rs in rates.items()}
+    medians = print_rounds(rates)
     p, c = medians["plain"], medians["compiled"]
-    print(f"| median [updates/s] | {p[0]:.1f} | {p[1]:.1f} | {c[0]:.1f} | {c[1]:.1f} |")
     print(f"\ncompiled / plain: wall {c[0] / p[0]:.2f}, CPU time {c[1] / p[1]:.2f}")
     print(f"of the floor (CPU time): plain {p[1] / floor_cpu:.0%}, compiled {c[1] / floor_cpu:.0%}")
 
