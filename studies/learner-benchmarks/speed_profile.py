@@ -8,9 +8,9 @@ Per round: the floor (learning.matmul_floor), then `updates` gradient steps unde
 per round the step's time per update and, per kernel group, its own time per update, its share of
 the step and its ratio to the floor, then the median over rounds. The groups: the matrix products
 (aten::addmm, aten::mm: the products the floor times alone), LayerNorm and ReLU (forward and
-backward), the optimizer's update (Adam's own: its kernels, its Python and zero_grad; the losses that
-hook into its step, the demonstrations' BC loss and the return bound, run inside `Optimizer.step` and
-are counted by their kernels in the groups above and the rest) and the rest (sampling and
+backward), the optimizer's update (Adam's kernels, zero_grad and `Optimizer.step`'s own Python, which
+includes the Python of the losses hooked into the step: the demonstrations' BC loss and the return
+bound run inside `Optimizer.step`, their kernels counted in the groups above) and the rest (sampling and
 relabelling, normalising, autograd, Python). The profiler slows the step by a few percent; its shares are what
 this reads, the speed table's updates/s are the measure.
 """
